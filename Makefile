@@ -1,0 +1,42 @@
+# make demo | make test | make bench | make lint
+# Each target bootstraps .venv on first use. With a sourced ROS 2 install ($ROS_DISTRO set) the
+# venv sees the system packages and the ROS wheels are not installed; otherwise the pinned Jazzy
+# wheels come from PyPI through the `ros` extra.
+
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.tcomp-installed
+OUT ?= out
+
+ifdef ROS_DISTRO
+VENV_FLAGS := --system-site-packages
+EXTRAS := test
+else
+VENV_FLAGS :=
+EXTRAS := ros,test
+endif
+
+.PHONY: demo test bench lint clean
+
+$(STAMP): setup.py setup.cfg package.xml
+	$(PYTHON) -m venv $(VENV_FLAGS) $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[$(EXTRAS)]'
+	touch $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+demo: $(STAMP)
+	$(PY) -m tcomp_core.demo --out $(OUT)/demo
+
+bench: $(STAMP)
+	$(PY) bench/bench_scatter_vs_svd.py
+
+lint: $(STAMP)
+	$(PY) -m ruff check .
+	$(PY) -m ruff format --check .
+
+clean:
+	rm -rf $(VENV) $(OUT) build *.egg-info

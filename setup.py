@@ -1,0 +1,49 @@
+"""One distribution holding the numerical core (tcomp_core) and the ROS 2 nodes (tcomp_ros)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE_NAME = "tcomp_ros"
+
+# ROS 2 Jazzy from pinned PyPI wheels, for machines without a sourced ROS install.
+# Unpinned ros-rclpy resolves to a newer distribution, so every wheel is pinned.
+ROS_WHEELS = [
+    "ros-rclpy==7.1.6",
+    "ros-sensor-msgs==5.3.6",
+    "ros-diagnostic-msgs==5.3.6",
+    "ros-std-msgs==5.3.6",
+    "ros-rmw-fastrtps-cpp==8.4.3",
+]
+
+setup(
+    name=PACKAGE_NAME,
+    version="0.1.0",
+    description="Two-thermocouple lag compensation (Hung et al. 2005) for ROS 2",
+    license="Apache-2.0",
+    python_requires=">=3.11",
+    packages=find_packages(include=["tcomp_core", "tcomp_core.*", "tcomp_ros", "tcomp_ros.*"]),
+    package_data={"tcomp_core": ["py.typed"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE_NAME}"]),
+        (f"share/{PACKAGE_NAME}", ["package.xml"]),
+        (f"share/{PACKAGE_NAME}/config", glob("config/*.yaml")),
+    ],
+    install_requires=[
+        "numpy>=1.26",
+        "scipy>=1.11",
+        "rosbags>=0.10",
+        "mcap>=1.1",
+        "matplotlib>=3.8",
+    ],
+    extras_require={
+        "ros": ROS_WHEELS,
+        "test": ["pytest>=8", "ruff>=0.5"],
+    },
+    zip_safe=True,
+    entry_points={
+        "console_scripts": [
+            "tcomp = tcomp_core.cli:main",
+        ],
+    },
+)

@@ -1,0 +1,117 @@
+"""All two-thermocouple time-constant estimators of Hung et al. (2005), behind one function.
+
+=============  ==========================================================================
+``tdr-kee``    time-derivative reconstruction, α = τ1/τ2 known a priori (Kee et al. 1999)
+``gamma-ls``   least squares on the three-parameter ARX model (Eq. 11)
+``gamma-tls``  total least squares on Eq. (11)
+``beta-ls``    least squares on the two-parameter β model (Eqs. 13–17)
+``beta-tls``   total least squares on the β model
+``beta-gtls``  generalized total least squares with noise covariance C0(φ) (Eqs. 18–21)
+=============  ==========================================================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Literal, get_args
+
+from numpy.typing import ArrayLike
+
+from ..filters import prefilter
+from ..validation import check_excitation, check_pair, check_sample_interval
+from .beta import beta_gtls, beta_ls, beta_noise_covariance, beta_tls, estimate_beta_from_scatter
+from .gamma import gamma_ls, gamma_tls
+from .result import Estimate
+from .tdr import tdr_kee
+
+__all__ = [
+    "DIFFERENCE_EQUATION_METHODS",
+    "METHODS",
+    "Estimate",
+    "Method",
+    "beta_gtls",
+    "beta_ls",
+    "beta_noise_covariance",
+    "beta_tls",
+    "estimate",
+    "estimate_beta_from_scatter",
+    "gamma_ls",
+    "gamma_tls",
+    "tdr_kee",
+]
+
+Method = Literal["tdr-kee", "gamma-ls", "gamma-tls", "beta-ls", "beta-tls", "beta-gtls"]
+METHODS: tuple[str, ...] = get_args(Method)
+DIFFERENCE_EQUATION_METHODS: tuple[str, ...] = METHODS[1:]
+
+
+def estimate(
+    tc1: ArrayLike,
+    tc2: ArrayLike,
+    dt: float,
+    method: Method = "beta-gtls",
+    *,
+    phi: float = 1.0,
+    alpha: float | None = None,
+    prefilter_hz: float | None = None,
+    names: tuple[str, str] = ("tc1", "tc2"),
+) -> Estimate:
+    """Estimate the time constants of two thermocouples from their signals alone.
+
+    Parameters
+    ----------
+    tc1, tc2 : array_like, shape (N,)
+        Temperatures of thermocouples 1 and 2 in degrees C, sampled simultaneously and uniformly.
+    dt : float
+        Sample interval τ_s in seconds.
+    method : str
+        One of :data:`METHODS`; β-GTLS by default.
+    phi : float
+        Noise variance ratio σ1²/σ2² assumed by ``beta-gtls`` (1 when the noise is equal).
+    alpha : float, optional
+        Time constant ratio τ1/τ2 for ``tdr-kee`` (estimated at signal crossovers if omitted);
+        refused for the other methods, which need no prior.
+    prefilter_hz : float, optional
+        Bandwidth of a zero-phase Butterworth pre-filter applied to both signals first, Hz.
+    names : pair of str
+        What to call the signals in error messages (columns, topics).
+
+    Returns
+    -------
+    Estimate
+        ``.tau1`` and ``.tau2`` in seconds, the raw parameters and a conditioning figure.
+
+    Raises
+    ------
+    DataError
+        Non-finite samples, unequal lengths, too few samples.
+    NoExcitationError
+        The data carry no information on the time constants (constant or identical signals).
+    PhysicalRangeError
+        A discrete pole came out outside (0, 1).
+    """
+    first, second = check_pair(tc1, tc2, names)
+    dt = check_sample_interval(dt)
+    check_excitation(first, second, names)
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    if alpha is not None and method != "tdr-kee":
+        raise ValueError(f"alpha applies to tdr-kee only; {method} estimates both time constants")
+    if prefilter_hz is not None:
+        first = prefilter(first, dt, prefilter_hz)
+        second = prefilter(second, dt, prefilter_hz)
+    if method == "tdr-kee":
+        result = tdr_kee(first, second, dt, alpha)
+    elif method == "gamma-ls":
+        result = gamma_ls(first, second, dt)
+    elif method == "gamma-tls":
+        result = gamma_tls(first, second, dt)
+    elif method == "beta-ls":
+        result = beta_ls(first, second, dt)
+    elif method == "beta-tls":
+        result = beta_tls(first, second, dt)
+    else:
+        result = beta_gtls(first, second, dt, phi)
+    if prefilter_hz is None:
+        return result
+    return replace(result, prefilter_hz=float(prefilter_hz))

@@ -1,0 +1,180 @@
+"""Regression rows, their scatter matrices and the LS / TLS / GTLS solutions from a scatter.
+
+Every difference-equation estimator solves a linear errors-in-variables problem
+``X θ ≈ Y``. All it needs from the data is the scatter matrix ``S = Zᵀ Z`` of the augmented rows
+``Z = [X Y]`` (3×3 for β, 4×4 for γ): least squares, total least squares and generalized TLS are
+all functions of ``S``. Accumulating ``S`` in chunks takes O(N) time and O(1) memory, where the
+SVD of the N×3 matrix the paper used (Eq. 20) takes O(N) memory.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+
+__all__ = [
+    "CHUNK_ROWS",
+    "accumulate_scatter",
+    "beta_rows",
+    "beta_scatter",
+    "equilibrated_condition",
+    "gamma_rows",
+    "gamma_scatter",
+    "solve_gtls",
+    "solve_ls",
+]
+
+#: Rows formed at a time when accumulating a scatter matrix: bounds the working memory.
+CHUNK_ROWS = 1 << 16
+
+
+def beta_rows(tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Augmented rows ``[x1, x2, y]`` of the β model Y = Xθ (Eqs. 13–15).
+
+    ``x1 = T_m1(k) - T_m1(k-1)``, ``x2 = T_m1(k-1) - T_m2(k-1)``, ``y = T_m2(k) - T_m2(k-1)``
+    for k = 1..N-1.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+
+    Returns
+    -------
+    ndarray, shape (N-1, 3)
+    """
+    rows = np.empty((tc1.size - 1, 3))
+    np.subtract(tc1[1:], tc1[:-1], out=rows[:, 0])
+    np.subtract(tc1[:-1], tc2[:-1], out=rows[:, 1])
+    np.subtract(tc2[1:], tc2[:-1], out=rows[:, 2])
+    return rows
+
+
+def gamma_rows(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], offset: float = 0.0
+) -> NDArray[np.float64]:
+    """Augmented rows ``[T_m2(k-1), T_m1(k), T_m1(k-1), T_m2(k)]`` of the γ model (Eq. 11).
+
+    ``offset`` is subtracted from every temperature first (0 by default, as in the paper).
+    Because γ1 + γ2 + γ3 = 1 a common offset leaves the noise-free Eq. (11) unchanged, but it
+    changes the regression: the mean level is itself excitation along the unity-gain direction,
+    and without it a single sinusoid spans only two of the three regressor dimensions. The γ
+    estimators therefore use the raw temperatures, in the units given.
+
+    Returns
+    -------
+    ndarray, shape (N-1, 4)
+    """
+    rows = np.empty((tc1.size - 1, 4))
+    np.subtract(tc2[:-1], offset, out=rows[:, 0])
+    np.subtract(tc1[1:], offset, out=rows[:, 1])
+    np.subtract(tc1[:-1], offset, out=rows[:, 2])
+    np.subtract(tc2[1:], offset, out=rows[:, 3])
+    return rows
+
+
+def accumulate_scatter(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    rows_of,
+    width: int,
+    chunk_rows: int = CHUNK_ROWS,
+) -> NDArray[np.float64]:
+    """Sum ``rowsᵀ rows`` over the record, forming at most ``chunk_rows`` rows at a time.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+    rows_of : callable
+        Maps two sample slices of length L+1 to their L augmented rows.
+    width : int
+        Number of columns of a row.
+    chunk_rows : int
+        Rows per chunk; consecutive chunks overlap by one sample so no row is lost.
+
+    Returns
+    -------
+    ndarray, shape (width, width)
+    """
+    scatter = np.zeros((width, width))
+    for start in range(0, tc1.size - 1, chunk_rows):
+        stop = min(start + chunk_rows + 1, tc1.size)
+        rows = rows_of(tc1[start:stop], tc2[start:stop])
+        scatter += rows.T @ rows
+    return scatter
+
+
+def beta_scatter(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], chunk_rows: int = CHUNK_ROWS
+) -> NDArray[np.float64]:
+    """3×3 scatter matrix ``[X Y]ᵀ [X Y]`` of the β model, accumulated in chunks."""
+    return accumulate_scatter(tc1, tc2, beta_rows, 3, chunk_rows)
+
+
+def gamma_scatter(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    offset: float = 0.0,
+    chunk_rows: int = CHUNK_ROWS,
+) -> NDArray[np.float64]:
+    """4×4 scatter matrix of the γ model rows (see :func:`gamma_rows`), accumulated in chunks."""
+    return accumulate_scatter(
+        tc1, tc2, lambda first, second: gamma_rows(first, second, offset), 4, chunk_rows
+    )
+
+
+def equilibrated_condition(regressor_scatter: NDArray[np.float64]) -> float:
+    """2-norm condition number of a regressor matrix X from its scatter ``XᵀX``.
+
+    Columns are first scaled to unit norm, so the figure measures collinearity, not units:
+    ``cond(X D) = sqrt(cond(D XᵀX D))`` with ``D = diag(XᵀX)^(-1/2)``.
+    """
+    diagonal = np.diag(regressor_scatter)
+    if np.any(diagonal <= 0.0):
+        return np.inf
+    scale = 1.0 / np.sqrt(diagonal)
+    eigenvalues = np.linalg.eigvalsh(regressor_scatter * np.outer(scale, scale))
+    if eigenvalues[0] <= 0.0:
+        return np.inf
+    return float(np.sqrt(eigenvalues[-1] / eigenvalues[0]))
+
+
+def solve_ls(scatter: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Least-squares θ of ``X θ ≈ Y`` from the augmented scatter (last column is Y).
+
+    ``θ = (XᵀX)⁻¹ XᵀY`` (Eq. 16), solved by Cholesky.
+    """
+    return scipy.linalg.solve(scatter[:-1, :-1], scatter[:-1, -1], assume_a="pos")
+
+
+def solve_gtls(
+    scatter: NDArray[np.float64], covariance: NDArray[np.float64] | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Generalized total least-squares θ of ``X θ ≈ Y`` from the augmented scatter.
+
+    Minimises ``vᵀ S v / vᵀ C v`` over ``v = [θ; -1]``: the generalized eigenvector of
+    ``(S, C)`` with the smallest eigenvalue λ (equivalent to the GSVD solution of Eqs. 18–21).
+    With ``C = I`` this is ordinary TLS. θ is computed from the first block row of
+    ``(S - λ C) v = 0``, i.e. ``(S_xx - λ C_xx) θ = s_xy - λ c_xy``, which is better conditioned
+    than normalising the eigenvector when λ is tiny.
+
+    Parameters
+    ----------
+    scatter : ndarray, shape (p+1, p+1)
+        Augmented scatter ``[X Y]ᵀ [X Y]``.
+    covariance : ndarray, shape (p+1, p+1), optional
+        Row noise covariance up to a scalar (C0); identity when omitted.
+
+    Returns
+    -------
+    theta : ndarray, shape (p,)
+    eigenvalues : ndarray, shape (p+1,)
+        Generalized eigenvalues in ascending order (the smallest is the residual noise estimate).
+    """
+    width = scatter.shape[0]
+    covariance = np.eye(width) if covariance is None else covariance
+    eigenvalues = scipy.linalg.eigh(scatter, covariance, eigvals_only=True)
+    smallest = eigenvalues[0]
+    lhs = scatter[:-1, :-1] - smallest * covariance[:-1, :-1]
+    rhs = scatter[:-1, -1] - smallest * covariance[:-1, -1]
+    return scipy.linalg.solve(lhs, rhs, assume_a="sym"), eigenvalues

@@ -1,0 +1,183 @@
+"""Boundary checks for sampled two-thermocouple data.
+
+All checks raise :class:`~tcomp_core.errors.DataError` with a message naming the signal (the
+``names`` given by the caller: a CSV column, a bag topic), the first offending sample and its
+value.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import DataError, NoExcitationError
+
+__all__ = [
+    "MIN_SAMPLES",
+    "UNIFORM_TOLERANCE",
+    "check_excitation",
+    "check_finite",
+    "check_pair",
+    "check_sample_interval",
+    "sample_interval_from_time",
+]
+
+#: Fewest samples any estimator accepts: a few sample periods are not enough to see a lag.
+MIN_SAMPLES = 16
+
+#: Largest relative deviation of a sample step from the median step still called uniform.
+UNIFORM_TOLERANCE = 1e-3
+
+
+def check_finite(values: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Return ``values`` as a 1-D float array, refusing NaN and infinities.
+
+    Parameters
+    ----------
+    values : array_like, shape (N,)
+        Samples of one signal.
+    name : str
+        What to call the signal in an error (column, topic).
+
+    Returns
+    -------
+    ndarray of float64, shape (N,)
+
+    Raises
+    ------
+    DataError
+        If the array is not one-dimensional or holds a non-finite sample; the message names the
+        first such sample, its value and how many there are.
+    """
+    array = np.asarray(values, dtype=np.float64)
+    if array.ndim != 1:
+        raise DataError(f"{name}: expected a 1-D series of samples, got shape {array.shape}")
+    bad = ~np.isfinite(array)
+    if bad.any():
+        index = int(np.flatnonzero(bad)[0])
+        raise DataError(
+            f"{name}: sample {index} is {array[index]!r}; {int(bad.sum())} of {array.size} "
+            "samples are not finite"
+        )
+    return array
+
+
+def check_sample_interval(dt: float) -> float:
+    """Return ``dt`` as a float after checking that it is a finite positive interval in seconds."""
+    dt = float(dt)
+    if not np.isfinite(dt) or dt <= 0.0:
+        raise DataError(f"{dt=} must be a finite sample interval > 0 s")
+    return dt
+
+
+def check_pair(
+    tc1: ArrayLike,
+    tc2: ArrayLike,
+    names: Sequence[str] = ("tc1", "tc2"),
+    min_samples: int = MIN_SAMPLES,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Check two simultaneously sampled thermocouple signals and return them as float arrays.
+
+    Parameters
+    ----------
+    tc1, tc2 : array_like, shape (N,)
+        Measured temperatures of the two thermocouples, in degrees C, sampled at the same instants.
+    names : pair of str
+        What to call the signals in errors.
+    min_samples : int
+        Fewest samples accepted.
+
+    Raises
+    ------
+    DataError
+        On non-finite samples, unequal lengths or too few samples.
+    """
+    first = check_finite(tc1, names[0])
+    second = check_finite(tc2, names[1])
+    if first.size != second.size:
+        raise DataError(
+            f"{names[0]} has {first.size} samples but {names[1]} has {second.size}: "
+            "the two thermocouples must be sampled at the same instants"
+        )
+    if first.size < min_samples:
+        raise DataError(
+            f"{names[0]}/{names[1]}: {first.size} samples are too few; "
+            f"at least {min_samples} are needed"
+        )
+    return first, second
+
+
+def check_excitation(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], names: Sequence[str] = ("tc1", "tc2")
+) -> None:
+    """Refuse signals that carry no information on the time constants.
+
+    A constant signal, or two identical signals, leave the regressions of Eqs. (11) and (14)
+    singular: no time constant explains them better than another.
+
+    Raises
+    ------
+    NoExcitationError
+        If either signal is constant or the two signals are identical.
+    """
+    for values, name in zip((tc1, tc2), names, strict=True):
+        if np.ptp(values) == 0.0:
+            raise NoExcitationError(
+                f"{name} is constant ({values[0]!r} in all {values.size} samples): "
+                "the data carry no information on the time constants"
+            )
+    if np.array_equal(tc1, tc2):
+        raise NoExcitationError(
+            f"{names[0]} and {names[1]} are identical in all {tc1.size} samples: two equal "
+            "signals carry no information on the time constants"
+        )
+
+
+def sample_interval_from_time(
+    time: ArrayLike, name: str = "time", tolerance: float = UNIFORM_TOLERANCE
+) -> float:
+    """Return the sample interval of a uniformly sampled time vector, in seconds.
+
+    Parameters
+    ----------
+    time : array_like, shape (N,)
+        Sample times in seconds.
+    name : str
+        What to call the time vector in errors.
+    tolerance : float
+        Largest accepted relative deviation of any step from the median step.
+
+    Returns
+    -------
+    float
+        The mean sample interval in seconds.
+
+    Raises
+    ------
+    DataError
+        If time is not finite, not strictly increasing or not uniformly sampled; the message names
+        the sample, the step found and by how much it deviates.
+    """
+    t = check_finite(time, name)
+    if t.size < 2:
+        raise DataError(f"{name}: {t.size} sample(s) give no sample interval")
+    steps = np.diff(t)
+    not_increasing = steps <= 0.0
+    if not_increasing.any():
+        index = int(np.flatnonzero(not_increasing)[0]) + 1
+        raise DataError(
+            f"{name} is not strictly increasing at sample {index}: "
+            f"{t[index - 1]!r} s is followed by {t[index]!r} s"
+        )
+    median = float(np.median(steps))
+    deviation = np.abs(steps - median) / median
+    worst = int(np.argmax(deviation))
+    if deviation[worst] > tolerance:
+        raise DataError(
+            f"{name} is not uniformly sampled: the step before sample {worst + 1} is "
+            f"{steps[worst]:.9g} s against a median step of {median:.9g} s "
+            f"({100.0 * deviation[worst]:.3g} % off, tolerance {100.0 * tolerance:.3g} %)"
+        )
+    return float((t[-1] - t[0]) / (t.size - 1))
