@@ -203,7 +203,7 @@ def _estimate(record: Record, args: argparse.Namespace, method: str) -> Estimate
         record.tc2,
         record.dt,
         method,  # type: ignore[arg-type]
-        phi=args.phi,
+        phi=args.phi if method == "beta-gtls" else 1.0,
         alpha=args.alpha if method == "tdr-kee" else None,
         prefilter_hz=args.prefilter_hz,
     )
@@ -339,7 +339,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         record.dt,
         args.method,
         bandwidths_hz=args.bandwidths,
-        phi=args.phi,
+        phi=args.phi if args.method == "beta-gtls" else 1.0,
         alpha=args.alpha if args.method == "tdr-kee" else None,
     )
     if args.json:

@@ -53,7 +53,7 @@ def pole_to_tau(a: float, dt: float, label: str = "a") -> float:
         raise PhysicalRangeError(
             f"{label} = {a!r} lies outside (0, 1): no positive time constant gives this pole"
         )
-    return -check_sample_interval(dt) / np.log(a)
+    return float(-check_sample_interval(dt) / np.log(a))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -58,7 +58,7 @@ def check_finite(values: ArrayLike, name: str) -> NDArray[np.float64]:
     if bad.any():
         index = int(np.flatnonzero(bad)[0])
         raise DataError(
-            f"{name}: sample {index} is {array[index]!r}; {int(bad.sum())} of {array.size} "
+            f"{name}: sample {index} is {float(array[index])!r}; {int(bad.sum())} of {array.size} "
             "samples are not finite"
         )
     return array
@@ -125,7 +125,7 @@ def check_excitation(
     for values, name in zip((tc1, tc2), names, strict=True):
         if np.ptp(values) == 0.0:
             raise NoExcitationError(
-                f"{name} is constant ({values[0]!r} in all {values.size} samples): "
+                f"{name} is constant ({float(values[0])!r} in all {values.size} samples): "
                 "the data carry no information on the time constants"
             )
     if np.array_equal(tc1, tc2):
@@ -169,7 +169,7 @@ def sample_interval_from_time(
         index = int(np.flatnonzero(not_increasing)[0]) + 1
         raise DataError(
             f"{name} is not strictly increasing at sample {index}: "
-            f"{t[index - 1]!r} s is followed by {t[index]!r} s"
+            f"{float(t[index - 1])!r} s is followed by {float(t[index])!r} s"
         )
     median = float(np.median(steps))
     deviation = np.abs(steps - median) / median

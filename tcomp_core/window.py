@@ -18,9 +18,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import DataError
-from .estimators.beta import estimate_beta_from_scatter
+from .estimators.beta import beta_noise_covariance, estimate_beta_from_scatter
 from .estimators.result import Estimate
-from .estimators.scatter import beta_rows, beta_scatter
+from .estimators.scatter import beta_rows
 from .validation import MIN_SAMPLES, check_finite, check_sample_interval
 
 __all__ = ["BETA_METHODS", "SlidingBetaWindow"]
@@ -59,8 +59,10 @@ class SlidingBetaWindow:
         self.capacity = int(capacity)
         self.dt = check_sample_interval(dt)
         self.method = method
+        beta_noise_covariance(phi)  # validates φ now rather than at the first estimate
         self.phi = float(phi)
-        self._buffer = np.empty((2 * self.capacity, 2))
+        # Columns: tc1, tc2, and 1.0 where the sample follows its predecessor without a gap.
+        self._buffer = np.empty((2 * self.capacity, 3))
         self._start = 0
         self._end = 0
         self._scatter = np.zeros((3, 3))
@@ -72,10 +74,15 @@ class SlidingBetaWindow:
 
     @property
     def samples(self) -> NDArray[np.float64]:
-        """The window's sample pairs, oldest first, shape (len, 2); a read-only view."""
-        view = self._buffer[self._start : self._end]
-        view.flags.writeable = False
-        return view
+        """The window's sample pairs, oldest first, shape (len, 2); a copy."""
+        return self._buffer[self._start : self._end, :2].copy()
+
+    @property
+    def rows(self) -> int:
+        """Number of regression rows in the window (sample pairs that follow their predecessor)."""
+        if len(self) < 2:
+            return 0
+        return int(self._buffer[self._start + 1 : self._end, 2].sum())
 
     @property
     def scatter(self) -> NDArray[np.float64]:
@@ -87,8 +94,15 @@ class SlidingBetaWindow:
         self._start = self._end = self._since_refresh = 0
         self._scatter[:] = 0.0
 
-    def push(self, tc1: float, tc2: float) -> None:
+    def push(self, tc1: float, tc2: float, contiguous: bool = True) -> None:
         """Append one sample pair, dropping the oldest once the window is full.
+
+        Parameters
+        ----------
+        tc1, tc2 : float
+            Temperatures, degrees C.
+        contiguous : bool
+            False when samples were lost since the previous pair: no row links the two.
 
         Raises
         ------
@@ -98,10 +112,17 @@ class SlidingBetaWindow:
         first, second = float(tc1), float(tc2)
         if not (np.isfinite(first) and np.isfinite(second)):
             raise DataError(f"sample pair ({first!r}, {second!r}) is not finite")
-        self._append(np.array([[first, second]]))
+        self._append(np.array([[first, second, float(contiguous)]]))
 
-    def extend(self, tc1: ArrayLike, tc2: ArrayLike) -> None:
+    def extend(self, tc1: ArrayLike, tc2: ArrayLike, contiguous: ArrayLike | bool = True) -> None:
         """Append many sample pairs at once (vectorised; same result as repeated :meth:`push`).
+
+        Parameters
+        ----------
+        tc1, tc2 : array_like, shape (M,)
+            Temperatures, degrees C.
+        contiguous : bool or array_like of bool, shape (M,)
+            Per sample (or for all): False where samples were lost before it.
 
         Raises
         ------
@@ -112,7 +133,8 @@ class SlidingBetaWindow:
         second = check_finite(tc2, "tc2")
         if first.size != second.size:
             raise DataError(f"tc1 has {first.size} samples but tc2 has {second.size}")
-        self._append(np.column_stack((first, second)))
+        flags = np.broadcast_to(np.asarray(contiguous, dtype=np.float64), first.shape)
+        self._append(np.column_stack((first, second, flags)))
 
     def estimate(self) -> Estimate:
         """Estimate τ1, τ2 from the window's scatter matrix.
@@ -124,15 +146,19 @@ class SlidingBetaWindow:
         NoExcitationError, PhysicalRangeError
             As the batch estimator.
         """
-        if len(self) < MIN_SAMPLES:
+        rows = self.rows
+        if rows + 1 < MIN_SAMPLES:
             raise DataError(
-                f"the window holds {len(self)} samples; at least {MIN_SAMPLES} are needed"
+                f"the window holds {rows} regression rows ({len(self)} samples); at least "
+                f"{MIN_SAMPLES - 1} are needed"
             )
-        return estimate_beta_from_scatter(self._scatter, self.dt, len(self), self.method, self.phi)
+        return estimate_beta_from_scatter(self._scatter, self.dt, rows + 1, self.method, self.phi)
 
-    def _rows_scatter(self, pairs: NDArray[np.float64]) -> NDArray[np.float64]:
-        rows = beta_rows(pairs[:, 0], pairs[:, 1])
-        return rows.T @ rows
+    @staticmethod
+    def _rows_scatter(block: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Scatter of the rows linking consecutive samples of ``block`` (L, 3), gaps excluded."""
+        rows = beta_rows(block[:, 0], block[:, 1])
+        return (rows * block[1:, 2:3]).T @ rows
 
     def _append(self, pairs: NDArray[np.float64]) -> None:
         if pairs.shape[0] >= self.capacity:
@@ -167,5 +193,5 @@ class SlidingBetaWindow:
 
     def _refresh(self) -> None:
         window = self._buffer[self._start : self._end]
-        self._scatter = beta_scatter(window[:, 0].copy(), window[:, 1].copy())
+        self._scatter = self._rows_scatter(window) if len(window) > 1 else np.zeros((3, 3))
         self._since_refresh = 0

@@ -67,7 +67,8 @@ def estimate(
     method : str
         One of :data:`METHODS`; β-GTLS by default.
     phi : float
-        Noise variance ratio σ1²/σ2² assumed by ``beta-gtls`` (1 when the noise is equal).
+        Noise variance ratio σ1²/σ2² assumed by ``beta-gtls`` (1 when the noise is equal);
+        refused for the other methods, which assume equal noise.
     alpha : float, optional
         Time constant ratio τ1/τ2 for ``tdr-kee`` (estimated at signal crossovers if omitted);
         refused for the other methods, which need no prior.
@@ -97,6 +98,8 @@ def estimate(
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if alpha is not None and method != "tdr-kee":
         raise ValueError(f"alpha applies to tdr-kee only; {method} estimates both time constants")
+    if phi != 1.0 and method != "beta-gtls":
+        raise ValueError(f"phi applies to beta-gtls only; {method} assumes equal noise variances")
     if prefilter_hz is not None:
         first = prefilter(first, dt, prefilter_hz)
         second = prefilter(second, dt, prefilter_hz)

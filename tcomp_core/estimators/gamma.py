@@ -25,9 +25,9 @@ from numpy.typing import NDArray
 
 from ..errors import NoExcitationError
 from .result import Estimate, estimate_from_poles
-from .scatter import equilibrated_condition, gamma_scatter, solve_gtls, solve_ls
+from .scatter import equilibrated_condition_r, gamma_r_factor, solve_gtls_r, solve_ls_r
 
-__all__ = ["estimate_gamma_from_scatter", "gamma_ls", "gamma_poles", "gamma_tls"]
+__all__ = ["estimate_gamma_from_factor", "gamma_ls", "gamma_poles", "gamma_tls"]
 
 MAX_CONDITION = 1e7
 
@@ -41,11 +41,15 @@ def gamma_poles(gamma: NDArray[np.float64]) -> tuple[float, float, float]:
     return a1, a2, a1_gain
 
 
-def estimate_gamma_from_scatter(
-    scatter: NDArray[np.float64], dt: float, n_samples: int, method: str
+def estimate_gamma_from_factor(
+    factor: NDArray[np.float64], dt: float, n_samples: int, method: str
 ) -> Estimate:
-    """Solve the γ model from its 4×4 scatter (rows of :func:`scatter.gamma_rows`)."""
-    condition = equilibrated_condition(scatter[:3, :3])
+    """Solve the γ model from the 4×4 triangular factor of its rows (:func:`gamma_r_factor`).
+
+    The factor rather than the scatter matrix: the γ regressors carry the raw temperature levels,
+    and squaring their condition number would cost digits.
+    """
+    condition = equilibrated_condition_r(factor[:3, :3])
     if not condition < MAX_CONDITION:
         raise NoExcitationError(
             f"{method}: the regressors of Eq. (11) are collinear (condition {condition:.3g}): "
@@ -53,9 +57,9 @@ def estimate_gamma_from_scatter(
         )
     params: dict[str, float] = {}
     if method == "gamma-ls":
-        gamma = solve_ls(scatter)
+        gamma = solve_ls_r(factor)
     elif method == "gamma-tls":
-        gamma, eigenvalues = solve_gtls(scatter)
+        gamma, eigenvalues = solve_gtls_r(factor)
         params["noise_eigenvalue"] = float(eigenvalues[0])
     else:
         raise ValueError(f"unknown γ method {method!r}")
@@ -74,8 +78,7 @@ def gamma_ls(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float) -> E
     dt : float
         Sample interval, seconds.
     """
-    scatter = gamma_scatter(tc1, tc2)
-    return estimate_gamma_from_scatter(scatter, dt, tc1.size, "gamma-ls")
+    return estimate_gamma_from_factor(gamma_r_factor(tc1, tc2), dt, tc1.size, "gamma-ls")
 
 
 def gamma_tls(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float) -> Estimate:
@@ -84,5 +87,4 @@ def gamma_tls(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float) -> 
     Each column of ``[T_m2(k-1), T_m1(k), T_m1(k-1), T_m2(k)]`` carries one independent noise
     sample, so with equal noise variances the row covariance is σ²I and TLS is consistent.
     """
-    scatter = gamma_scatter(tc1, tc2)
-    return estimate_gamma_from_scatter(scatter, dt, tc1.size, "gamma-tls")
+    return estimate_gamma_from_factor(gamma_r_factor(tc1, tc2), dt, tc1.size, "gamma-tls")

@@ -15,14 +15,19 @@ from numpy.typing import NDArray
 
 __all__ = [
     "CHUNK_ROWS",
+    "accumulate_r_factor",
     "accumulate_scatter",
     "beta_rows",
     "beta_scatter",
     "equilibrated_condition",
+    "equilibrated_condition_r",
+    "gamma_r_factor",
     "gamma_rows",
     "gamma_scatter",
     "solve_gtls",
+    "solve_gtls_r",
     "solve_ls",
+    "solve_ls_r",
 ]
 
 #: Rows formed at a time when accumulating a scatter matrix: bounds the working memory.
@@ -104,11 +109,52 @@ def accumulate_scatter(
     return scatter
 
 
+def accumulate_r_factor(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    rows_of,
+    width: int,
+    chunk_rows: int = CHUNK_ROWS,
+) -> NDArray[np.float64]:
+    """Triangular factor R of the augmented rows (``rowsᵀ rows = Rᵀ R``), one chunk at a time.
+
+    Each chunk is stacked under the current R and re-factorised (a tall-skinny QR), so memory
+    stays O(chunk) while R keeps the conditioning of the data matrix itself; the scatter matrix
+    squares it. The γ regressors carry the raw temperature levels and can be ill-conditioned
+    enough for that to cost digits.
+
+    Returns
+    -------
+    ndarray, shape (width, width)
+        Upper triangular.
+    """
+    factor = np.zeros((0, width))
+    for start in range(0, tc1.size - 1, chunk_rows):
+        stop = min(start + chunk_rows + 1, tc1.size)
+        stacked = np.vstack((factor, rows_of(tc1[start:stop], tc2[start:stop])))
+        factor = np.linalg.qr(stacked, mode="r")
+    if factor.shape[0] < width:
+        factor = np.vstack((factor, np.zeros((width - factor.shape[0], width))))
+    return factor
+
+
 def beta_scatter(
     tc1: NDArray[np.float64], tc2: NDArray[np.float64], chunk_rows: int = CHUNK_ROWS
 ) -> NDArray[np.float64]:
     """3×3 scatter matrix ``[X Y]ᵀ [X Y]`` of the β model, accumulated in chunks."""
     return accumulate_scatter(tc1, tc2, beta_rows, 3, chunk_rows)
+
+
+def gamma_r_factor(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    offset: float = 0.0,
+    chunk_rows: int = CHUNK_ROWS,
+) -> NDArray[np.float64]:
+    """4×4 triangular factor of the γ model rows (see :func:`gamma_rows`), chunk by chunk."""
+    return accumulate_r_factor(
+        tc1, tc2, lambda first, second: gamma_rows(first, second, offset), 4, chunk_rows
+    )
 
 
 def gamma_scatter(
@@ -121,6 +167,15 @@ def gamma_scatter(
     return accumulate_scatter(
         tc1, tc2, lambda first, second: gamma_rows(first, second, offset), 4, chunk_rows
     )
+
+
+def equilibrated_condition_r(regressor_factor: NDArray[np.float64]) -> float:
+    """Like :func:`equilibrated_condition`, from the triangular factor of the regressors."""
+    norms = np.linalg.norm(regressor_factor, axis=0)
+    if np.any(norms <= 0.0):
+        return np.inf
+    singular = np.linalg.svd(regressor_factor / norms, compute_uv=False)
+    return float(singular[0] / singular[-1]) if singular[-1] > 0.0 else np.inf
 
 
 def equilibrated_condition(regressor_scatter: NDArray[np.float64]) -> float:
@@ -145,6 +200,37 @@ def solve_ls(scatter: NDArray[np.float64]) -> NDArray[np.float64]:
     ``θ = (XᵀX)⁻¹ XᵀY`` (Eq. 16), solved by Cholesky.
     """
     return scipy.linalg.solve(scatter[:-1, :-1], scatter[:-1, -1], assume_a="pos")
+
+
+def solve_ls_r(factor: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Least-squares θ from the triangular factor R of ``[X Y]``: ``R_xx θ = r_xy``."""
+    return scipy.linalg.solve_triangular(factor[:-1, :-1], factor[:-1, -1])
+
+
+def solve_gtls_r(
+    factor: NDArray[np.float64], covariance: NDArray[np.float64] | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """GTLS θ from the triangular factor R of ``[X Y]`` (TLS when ``covariance`` is omitted).
+
+    The GSVD route of Eqs. (18–21) applied to R instead of the N-row matrix: with
+    ``C = Wᵀ W`` (Cholesky), the right singular vector v of ``R W⁻¹`` with the smallest singular
+    value gives ``g = W⁻¹ v`` and ``θ = -g[:-1] / g[-1]`` (Eq. 21).
+
+    Returns
+    -------
+    theta : ndarray, shape (p,)
+    eigenvalues : ndarray, shape (p+1,)
+        Squared singular values in ascending order (generalized eigenvalues of ``(RᵀR, C)``).
+    """
+    width = factor.shape[0]
+    if covariance is None:
+        weight = np.eye(width)
+    else:
+        weight = scipy.linalg.cholesky(covariance, lower=False)
+    weighted = scipy.linalg.solve_triangular(weight, factor.T, trans="T").T  # R W⁻¹
+    _, singular, right = np.linalg.svd(weighted)
+    direction = scipy.linalg.solve_triangular(weight, right[-1])
+    return -direction[:-1] / direction[-1], singular[::-1] ** 2
 
 
 def solve_gtls(
