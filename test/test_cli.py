@@ -1,0 +1,159 @@
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from tcomp_core.io import read_record
+
+from tcomp_core.cli import build_parser, main
+
+VERBS = ["simulate", "estimate", "reconstruct", "sweep", "study"]
+
+
+@pytest.mark.parametrize("verb", VERBS)
+def test_every_verb_has_help(verb, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main([verb, "--help"])
+    assert exit_info.value.code == 0
+    assert "usage: tcomp " + verb in capsys.readouterr().out
+
+
+def test_parser_lists_every_verb():
+    help_text = build_parser().format_help()
+    for verb in VERBS:
+        assert verb in help_text
+
+
+@pytest.fixture
+def simulated(tmp_path):
+    csv, bag = tmp_path / "sim.csv", tmp_path / "sim_bag"
+    status = main(
+        [
+            *("simulate", "--signal", "ramp", "--tau1", "0.03", "--tau2", "0.12"),
+            *("--rate", "500", "--duration", "6", "-o", str(csv), "-o", str(bag)),
+        ]
+    )
+    assert status == 0
+    return csv, bag
+
+
+@pytest.mark.parametrize("which", [0, 1], ids=["csv", "mcap"])
+def test_simulate_then_estimate_recovers_tau(simulated, which, capsys):
+    capsys.readouterr()
+    assert main(["estimate", str(simulated[which]), "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["method"] == "beta-gtls"
+    assert payload["tau1"] == pytest.approx(0.03, rel=1e-9)
+    assert payload["tau2"] == pytest.approx(0.12, rel=1e-9)
+    assert payload["samples"] == 3000
+
+
+def test_csv_and_bag_hold_the_same_samples(simulated):
+    from_csv, from_bag = (read_record(path) for path in simulated)
+    np.testing.assert_array_equal(from_csv.tc1, from_bag.tc1)
+    np.testing.assert_array_equal(from_csv.tc2, from_bag.tc2)
+    np.testing.assert_array_equal(from_csv.ref, from_bag.ref)
+    np.testing.assert_allclose(from_csv.time, from_bag.time, atol=1e-9)
+
+
+def test_estimate_all_methods_table(simulated, capsys):
+    capsys.readouterr()
+    assert main(["estimate", str(simulated[0]), "--method", "all", "--alpha", "0.25"]) == 0
+    out = capsys.readouterr().out
+    for method in ["tdr-kee", "gamma-ls", "gamma-tls", "beta-ls", "beta-tls", "beta-gtls"]:
+        assert method in out
+
+
+@pytest.mark.parametrize("suffix", ["gas.csv", "gas_bag"])
+def test_reconstruct_round_trip_recovers_gas(simulated, tmp_path, suffix, capsys):
+    output = tmp_path / suffix
+    assert main(["reconstruct", str(simulated[1]), "-o", str(output)]) == 0
+    printed = capsys.readouterr().out
+    assert "e_Tg (combined)" in printed
+    source = read_record(simulated[0])
+    if suffix.endswith(".csv"):
+        import csv
+
+        with output.open() as handle:
+            rows = list(csv.DictReader(handle))
+        gas = np.array([float(row["gas"]) for row in rows])
+    else:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        with AnyReader([output], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            connections = [c for c in reader.connections if c.topic == "/gas_temperature"]
+            gas = np.array(
+                [
+                    reader.deserialize(raw, conn.msgtype).temperature
+                    for conn, _, raw in reader.messages(connections=connections)
+                ]
+            )
+    assert gas.size == source.tc1.size - 1
+    # Noise-free data and exact time constants: the zero-order-held gas comes back exactly.
+    np.testing.assert_allclose(gas, source.ref[:-1], rtol=1e-8)
+
+
+def test_reconstruct_refuses_to_overwrite(simulated, tmp_path, capsys):
+    output = tmp_path / "gas.csv"
+    output.write_text("keep me")
+    assert main(["reconstruct", str(simulated[0]), "-o", str(output)]) == 1
+    assert "gas.csv" in capsys.readouterr().err
+    assert output.read_text() == "keep me"
+
+
+def test_sweep_writes_png_and_picks_a_frequency(simulated, tmp_path, capsys):
+    png = tmp_path / "sweep.png"
+    assert main(["sweep", str(simulated[0]), "--json", "--png", str(png)]) == 0
+    payload = json.loads(capsys.readouterr().out.split("\nwrote")[0])
+    assert payload["best_hz"] > payload["fundamental_hz"]
+    assert png.stat().st_size > 1000
+
+
+def test_study_prints_table_and_findings(tmp_path, capsys):
+    png, table = tmp_path / "study.png", tmp_path / "study.json"
+    args = ["study", "--runs", "3", "--noise-levels", "0", "2", "--signals", "ramp"]
+    assert main([*args, "--png", str(png), "--json", str(table)]) == 0
+    out = capsys.readouterr().out
+    assert "ramp: e_tau1" in out and "beta-gtls" in out
+    assert "[HOLDS] beta-gtls and gamma-tls agree" in out
+    assert png.stat().st_size > 1000
+    rows = json.loads(table.read_text())["rows"]
+    assert len(rows) == 2 * 6
+
+
+def test_missing_file_is_one_line_error(tmp_path, capsys):
+    missing = tmp_path / "nowhere.csv"
+    assert main(["estimate", str(missing)]) == 1
+    err = capsys.readouterr().err
+    assert "nowhere.csv" in err and err.count("\n") == 1
+
+
+def test_constant_signal_reports_no_information(tmp_path, capsys):
+    path = tmp_path / "flat.csv"
+    time = (np.arange(100) * 0.01).tolist()
+    rows = "\n".join(f"{t!r},300.0,300.0" for t in time)
+    path.write_text("time,tc1,tc2\n" + rows + "\n")
+    assert main(["estimate", str(path)]) == 1
+    assert "no information" in capsys.readouterr().err
+
+
+def test_console_script_entry_point_runs():
+    completed = subprocess.run(
+        [sys.executable, "-m", "tcomp_core.cli", "--version"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert completed.returncode == 0
+    assert completed.stdout.startswith("tcomp ")
+
+
+def test_core_never_imports_rclpy():
+    code = (
+        "import sys, tcomp_core, tcomp_core.cli, tcomp_core.io, tcomp_core.study, "
+        "tcomp_core.sweep, tcomp_core.plots, tcomp_core.window\n"
+        "sys.exit(1 if 'rclpy' in sys.modules else 0)"
+    )
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
