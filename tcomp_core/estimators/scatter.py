@@ -23,7 +23,6 @@ __all__ = [
     "equilibrated_condition_r",
     "gamma_r_factor",
     "gamma_rows",
-    "gamma_scatter",
     "solve_gtls",
     "solve_gtls_r",
     "solve_ls",
@@ -153,18 +152,6 @@ def gamma_r_factor(
 ) -> NDArray[np.float64]:
     """4×4 triangular factor of the γ model rows (see :func:`gamma_rows`), chunk by chunk."""
     return accumulate_r_factor(
-        tc1, tc2, lambda first, second: gamma_rows(first, second, offset), 4, chunk_rows
-    )
-
-
-def gamma_scatter(
-    tc1: NDArray[np.float64],
-    tc2: NDArray[np.float64],
-    offset: float = 0.0,
-    chunk_rows: int = CHUNK_ROWS,
-) -> NDArray[np.float64]:
-    """4×4 scatter matrix of the γ model rows (see :func:`gamma_rows`), accumulated in chunks."""
-    return accumulate_scatter(
         tc1, tc2, lambda first, second: gamma_rows(first, second, offset), 4, chunk_rows
     )
 
