@@ -44,6 +44,8 @@ setup(
     entry_points={
         "console_scripts": [
             "tcomp = tcomp_core.cli:main",
+            "compensator_node = tcomp_ros.compensator:main",
+            "replay_node = tcomp_ros.replay:main",
         ],
     },
 )

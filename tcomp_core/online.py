@@ -1,0 +1,414 @@
+"""Online compensation: sliding-window estimation and causal reconstruction of matched pairs.
+
+This is the numerical engine of the ROS compensator node; the node only turns messages into the
+arrays this class takes and publishes what it returns.
+
+- Matched sample pairs arrive in batches with their stamps (nanoseconds). The sample period is
+  learnt from the first stamps (or given); a step longer than ``gap_factor`` periods is a gap,
+  and the regression row straddling it is left out of the window.
+- The window keeps the β scatter matrix up to date in O(1) per sample
+  (:class:`~tcomp_core.window.SlidingBetaWindow`); :meth:`OnlineCompensator.update_estimate`
+  solves it (β methods) or runs the batch estimator on the window's samples (γ, TDR, or when a
+  pre-filter is set). An estimate is accepted when it is physical and well conditioned.
+- Each new pair k reconstructs the gas temperature at the previous pair's stamp through Eq. (7)
+  with the latest accepted τ, using the actual stamp step for the pole; an optional causal
+  Butterworth low-pass smooths the result (a forward-backward filter cannot run online).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal, get_args
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import signal
+
+from .errors import DataError, TcompError
+from .estimators import METHODS, Estimate, beta_noise_covariance, estimate
+from .estimators.scatter import solve_gtls
+from .fit import fit_error_percent
+from .reconstruct import combination_weight
+from .validation import MIN_SAMPLES
+from .window import BETA_METHODS, SlidingBetaWindow
+
+__all__ = [
+    "RECONSTRUCT_FROM",
+    "EstimateStatus",
+    "OnlineCompensator",
+    "OnlineConfig",
+    "ReconstructFrom",
+]
+
+ReconstructFrom = Literal["fused", "tc1", "tc2"]
+RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
+
+#: Stamps used to learn the sample period when none is configured.
+PERIOD_LEARNING_SAMPLES = 64
+
+
+@dataclass(frozen=True, kw_only=True)
+class OnlineConfig:
+    """Settings of the online compensator (the node's parameters).
+
+    Attributes
+    ----------
+    window_s : float
+        Length of the estimation window, seconds.
+    method : str
+        Estimator, one of :data:`tcomp_core.METHODS`.
+    phi : float
+        Noise variance ratio σ1²/σ2² for β-GTLS and for fusing the reconstructions.
+    prefilter_hz : float
+        Zero-phase pre-filter applied to the window before estimation, Hz; 0 = off.
+    postfilter_hz : float
+        Causal Butterworth low-pass on the reconstruction, Hz; 0 = off.
+    postfilter_order : int
+        Order of that low-pass.
+    reconstruct_from : {'fused', 'tc1', 'tc2'}
+        Which reconstruction is output.
+    sample_period_s : float
+        Sample period of the pairs, seconds; 0 = learn it from the stamps.
+    gap_factor : float
+        A step longer than this many periods is a gap.
+    max_condition : float
+        Estimates whose conditioning figure exceeds this are not accepted.
+    max_model_error_pct : float
+        Model error (fit error beyond the noise floor) above which the fit counts as poor.
+    """
+
+    window_s: float = 2.0
+    method: str = "beta-gtls"
+    phi: float = 1.0
+    prefilter_hz: float = 0.0
+    postfilter_hz: float = 0.0
+    postfilter_order: int = 2
+    reconstruct_from: str = "fused"
+    sample_period_s: float = 0.0
+    gap_factor: float = 1.5
+    max_condition: float = 1e3
+    max_model_error_pct: float = 10.0
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.window_s > 0.0, f"window_s={self.window_s!r} must be > 0 s"),
+            (self.method in METHODS, f"method={self.method!r} is not one of {METHODS}"),
+            (math.isfinite(self.phi) and self.phi > 0.0, f"phi={self.phi!r} must be > 0"),
+            (self.prefilter_hz >= 0.0, f"prefilter_hz={self.prefilter_hz!r} must be >= 0"),
+            (self.postfilter_hz >= 0.0, f"postfilter_hz={self.postfilter_hz!r} must be >= 0"),
+            (1 <= self.postfilter_order <= 8, f"postfilter_order={self.postfilter_order!r}"),
+            (
+                self.reconstruct_from in RECONSTRUCT_FROM,
+                f"reconstruct_from={self.reconstruct_from!r} is not one of {RECONSTRUCT_FROM}",
+            ),
+            (self.sample_period_s >= 0.0, f"sample_period_s={self.sample_period_s!r} < 0"),
+            (self.gap_factor > 1.0, f"gap_factor={self.gap_factor!r} must be > 1"),
+            (self.max_condition >= 1.0, f"max_condition={self.max_condition!r} must be >= 1"),
+            (self.max_model_error_pct > 0.0, "max_model_error_pct must be > 0"),
+        ]
+        for holds, message in checks:
+            if not holds:
+                raise ValueError(message)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EstimateStatus:
+    """Outcome of one re-estimation.
+
+    Attributes
+    ----------
+    accepted : bool
+        Whether the estimate now drives the reconstruction.
+    estimate : Estimate or None
+        The estimate, also when it was not accepted (None when none could be made).
+    reason : str
+        Why it was not accepted ('' when accepted).
+    fit_error_pct : float
+        Free-run fit error of tc2 from tc1 over the window (:mod:`tcomp_core.fit`), percent.
+    noise_floor_pct : float
+        Part of the fit error explained by measurement noise alone, percent.
+    model_error_pct : float
+        ``sqrt(fit² - floor²)``: the part the model does not explain, percent.
+    stamp_ns : int
+        Stamp of the newest sample in the window.
+    poor_fit : bool
+        Whether the model error exceeds ``max_model_error_pct``.
+    """
+
+    accepted: bool
+    estimate: Estimate | None
+    reason: str = ""
+    fit_error_pct: float = math.nan
+    noise_floor_pct: float = math.nan
+    model_error_pct: float = math.nan
+    stamp_ns: int = 0
+    poor_fit: bool = False
+
+
+class OnlineCompensator:
+    """Sliding-window τ estimation and causal gas temperature reconstruction.
+
+    Parameters
+    ----------
+    config : OnlineConfig
+    initial_tau : (float, float), optional
+        Time constants to reconstruct with before the first accepted estimate, seconds.
+    """
+
+    def __init__(
+        self, config: OnlineConfig | None = None, initial_tau: tuple[float, float] | None = None
+    ) -> None:
+        self._config = config or OnlineConfig()
+        self._tau = initial_tau
+        self._window: SlidingBetaWindow | None = None
+        self._period: float | None = self._config.sample_period_s or None
+        self._learning: list[tuple[int, float, float]] = []
+        self._previous: tuple[int, float, float] | None = None
+        self._newest_stamp = 0
+        self._filter_state: NDArray[np.float64] | None = None
+        self._sos: NDArray[np.float64] | None = None
+        self.last_status: EstimateStatus | None = None
+        self.counters = {"pairs": 0, "gaps": 0, "reconstructed": 0, "unreconstructed": 0}
+
+    @property
+    def config(self) -> OnlineConfig:
+        """Current settings."""
+        return self._config
+
+    @property
+    def period_s(self) -> float | None:
+        """Sample period in seconds, once known."""
+        return self._period
+
+    @property
+    def tau(self) -> tuple[float, float] | None:
+        """Time constants (τ1, τ2) in seconds the reconstruction uses, once known."""
+        return self._tau
+
+    @property
+    def window_samples(self) -> int:
+        """Sample pairs in the estimation window."""
+        return 0 if self._window is None else len(self._window)
+
+    def reconfigure(self, config: OnlineConfig) -> None:
+        """Apply new settings, keeping the window's samples where they still fit."""
+        old = self._config
+        self._config = config
+        if config.sample_period_s and config.sample_period_s != old.sample_period_s:
+            self._period = config.sample_period_s
+        if self._window is not None and (
+            config.window_s != old.window_s
+            or config.sample_period_s != old.sample_period_s
+            or (config.method, config.phi) != (old.method, old.phi)
+        ):
+            samples = self._window.samples
+            self._window = self._new_window()
+            self._window.extend(samples[:, 0], samples[:, 1])
+        if (config.postfilter_hz, config.postfilter_order) != (
+            old.postfilter_hz,
+            old.postfilter_order,
+        ):
+            self._sos = self._filter_state = None
+
+    def _new_window(self) -> SlidingBetaWindow:
+        assert self._period is not None  # set before any sample reaches here
+        capacity = max(MIN_SAMPLES, round(self._config.window_s / self._period))
+        method = self._config.method if self._config.method in BETA_METHODS else "beta-gtls"
+        return SlidingBetaWindow(capacity, self._period, method, self._config.phi)
+
+    def add_pairs(
+        self, stamps_ns: ArrayLike, tc1: ArrayLike, tc2: ArrayLike
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Take matched pairs in increasing stamp order; return the new reconstructed samples.
+
+        Parameters
+        ----------
+        stamps_ns : array_like of int, shape (M,)
+            Sample stamps, nanoseconds, strictly increasing (also across calls).
+        tc1, tc2 : array_like, shape (M,)
+            Temperatures, degrees C, finite.
+
+        Returns
+        -------
+        stamps_ns : ndarray of int64, shape (R,)
+            Stamps of the reconstructed samples (each pair's predecessor).
+        gas : ndarray, shape (R,)
+            Reconstructed gas temperature, degrees C.
+
+        Raises
+        ------
+        DataError
+            Non-finite values or stamps not increasing; nothing is taken then.
+        """
+        stamps = np.asarray(stamps_ns, dtype=np.int64)
+        first = np.asarray(tc1, dtype=np.float64)
+        second = np.asarray(tc2, dtype=np.float64)
+        if not (stamps.shape == first.shape == second.shape) or stamps.ndim != 1:
+            raise DataError("stamps, tc1 and tc2 must be 1-D arrays of one length")
+        if stamps.size == 0:
+            return np.empty(0, dtype=np.int64), np.empty(0)
+        if not (np.isfinite(first).all() and np.isfinite(second).all()):
+            raise DataError("non-finite temperature in a matched pair")
+        previous = self._newest_stamp if self.counters["pairs"] else stamps[0] - 1
+        steps = np.diff(stamps, prepend=previous)
+        if np.any(steps <= 0):
+            index = int(np.flatnonzero(steps <= 0)[0])
+            raise DataError(f"pair stamp {int(stamps[index])} ns does not increase")
+        self.counters["pairs"] += stamps.size
+        self._newest_stamp = int(stamps[-1])
+        if self._period is None:
+            self._learning.extend(
+                zip(stamps.tolist(), first.tolist(), second.tolist(), strict=True)
+            )
+            if len(self._learning) < PERIOD_LEARNING_SAMPLES:
+                return np.empty(0, dtype=np.int64), np.empty(0)
+            learnt = np.array(self._learning)
+            self._learning = []
+            self._period = float(np.median(np.diff(learnt[:, 0]))) * 1e-9
+            return self._take(learnt[:, 0].astype(np.int64), learnt[:, 1], learnt[:, 2])
+        return self._take(stamps, first, second)
+
+    def _take(
+        self, stamps: NDArray[np.int64], tc1: NDArray[np.float64], tc2: NDArray[np.float64]
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        assert self._period is not None  # set before any sample reaches here
+        if self._window is None:
+            self._window = self._new_window()
+        if self._previous is not None:
+            stamps = np.concatenate(([self._previous[0]], stamps))
+            tc1 = np.concatenate(([self._previous[1]], tc1))
+            tc2 = np.concatenate(([self._previous[2]], tc2))
+        steps_s = np.diff(stamps) * 1e-9
+        # contiguous[i]: sample i+1 follows sample i without a gap.
+        contiguous = steps_s <= self._config.gap_factor * self._period
+        self.counters["gaps"] += int((~contiguous).sum())
+        if self._previous is not None:
+            self._window.extend(tc1[1:], tc2[1:], contiguous)
+        else:  # the very first sample has no predecessor to link to
+            self._window.extend(tc1, tc2, np.concatenate(([True], contiguous)))
+        self._previous = (int(stamps[-1]), float(tc1[-1]), float(tc2[-1]))
+        return self._reconstruct(stamps, tc1, tc2, steps_s, contiguous)
+
+    def _reconstruct(
+        self,
+        stamps: NDArray[np.int64],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        steps_s: NDArray[np.float64],
+        contiguous: NDArray[np.bool_],
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        if steps_s.size == 0:
+            return np.empty(0, dtype=np.int64), np.empty(0)
+        if self._tau is None:
+            self.counters["unreconstructed"] += int(steps_s.size)
+            return np.empty(0, dtype=np.int64), np.empty(0)
+        tau1, tau2 = self._tau
+        a1 = np.exp(-steps_s / tau1)
+        a2 = np.exp(-steps_s / tau2)
+        gas1 = (tc1[1:] - a1 * tc1[:-1]) / (1.0 - a1)
+        gas2 = (tc2[1:] - a2 * tc2[:-1]) / (1.0 - a2)
+        choice = self._config.reconstruct_from
+        combine = "inverse-variance" if choice == "fused" else choice
+        assert self._period is not None  # set before any sample reaches here
+        weight = combination_weight(
+            math.exp(-self._period / tau1),
+            math.exp(-self._period / tau2),
+            self._config.phi,
+            combine,  # type: ignore[arg-type]
+        )
+        gas = weight * gas1 + (1.0 - weight) * gas2
+        out_stamps = stamps[:-1][contiguous]
+        gas = gas[contiguous]
+        self.counters["reconstructed"] += int(gas.size)
+        self.counters["unreconstructed"] += int((~contiguous).sum())
+        return out_stamps, self._postfilter(gas)
+
+    def _postfilter(self, gas: NDArray[np.float64]) -> NDArray[np.float64]:
+        cutoff = self._config.postfilter_hz
+        if cutoff <= 0.0 or gas.size == 0:
+            return gas
+        assert self._period is not None  # set before any sample reaches here
+        nyquist = 0.5 / self._period
+        if self._sos is None:
+            self._sos = signal.butter(
+                self._config.postfilter_order,
+                min(cutoff, 0.99 * nyquist),
+                output="sos",
+                fs=1.0 / self._period,
+            )
+            self._filter_state = signal.sosfilt_zi(self._sos) * gas[0]
+        filtered, self._filter_state = signal.sosfilt(self._sos, gas, zi=self._filter_state)
+        return filtered
+
+    def update_estimate(self) -> EstimateStatus:
+        """Re-estimate τ1, τ2 from the window; accept the result when it is sound."""
+        status = self._estimate_window()
+        if status.accepted and status.estimate is not None:
+            self._tau = (status.estimate.tau1, status.estimate.tau2)
+        self.last_status = status
+        return status
+
+    def _estimate_window(self) -> EstimateStatus:
+        window = self._window
+        if window is None or window.rows + 1 < MIN_SAMPLES:
+            held = 0 if window is None else window.rows
+            return EstimateStatus(
+                accepted=False,
+                estimate=None,
+                reason=f"window holds {held} regression rows; {MIN_SAMPLES - 1} needed",
+                stamp_ns=self._newest_stamp,
+            )
+        config = self._config
+        samples = window.samples
+        try:
+            if config.method in BETA_METHODS and config.prefilter_hz == 0.0:
+                result = window.estimate()
+            else:
+                result = estimate(
+                    samples[:, 0],
+                    samples[:, 1],
+                    window.dt,
+                    config.method,  # type: ignore[arg-type]
+                    phi=config.phi if config.method == "beta-gtls" else 1.0,
+                    prefilter_hz=config.prefilter_hz or None,
+                )
+        except (TcompError, ValueError) as exc:
+            return EstimateStatus(
+                accepted=False, estimate=None, reason=str(exc), stamp_ns=self._newest_stamp
+            )
+        fit = fit_error_percent(samples[:, 0], samples[:, 1], result.a1, result.a2)
+        floor = self._noise_floor_percent(window, samples)
+        model = math.sqrt(max(fit**2 - floor**2, 0.0))
+        reason = ""
+        if not result.condition <= config.max_condition:
+            reason = (
+                f"ill-conditioned: condition {result.condition:.3g} exceeds "
+                f"{config.max_condition:.3g}"
+            )
+        return EstimateStatus(
+            accepted=not reason,
+            estimate=result,
+            reason=reason,
+            fit_error_pct=fit,
+            noise_floor_pct=floor,
+            model_error_pct=model,
+            stamp_ns=self._newest_stamp,
+            poor_fit=model > config.max_model_error_pct,
+        )
+
+    def _noise_floor_percent(
+        self, window: SlidingBetaWindow, samples: NDArray[np.float64]
+    ) -> float:
+        """Fit error that tc2's measurement noise alone would cause, percent of std(tc2).
+
+        The smallest generalized eigenvalue of the β scatter with C0(φ) estimates σ2² times the
+        number of rows (the row noise covariance is σ2² C0(φ), Eq. 19).
+        """
+        try:
+            _, eigenvalues = solve_gtls(window.scatter, beta_noise_covariance(self._config.phi))
+        except (ValueError, np.linalg.LinAlgError):
+            return math.nan
+        sigma2 = math.sqrt(max(float(eigenvalues[0]), 0.0) / max(window.rows, 1))
+        spread = float(np.std(samples[:, 1]))
+        return 100.0 * sigma2 / spread if spread > 0.0 else math.nan
