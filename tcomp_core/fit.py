@@ -49,13 +49,34 @@ def simulate_tc2_from_tc1(
 
 
 def fit_error_percent(
-    tc1: NDArray[np.float64], tc2: NDArray[np.float64], a1: float, a2: float
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    a1: float,
+    a2: float,
+    segment_starts: NDArray[np.intp] | None = None,
 ) -> float:
     """Free-run fit error of tc2 from tc1: ``100 rms(tc2 - tc2_sim) / std(tc2)``, in percent.
 
     This is 100 − MATLAB ``compare``'s fit percentage, up to its use of the rms about the mean.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Temperatures, degrees C.
+    a1, a2 : float
+        Discrete poles of the fitted pair.
+    segment_starts : ndarray of int, optional
+        Indices where the record resumes after a gap; the simulation restarts from the
+        measured tc2 there, as it does at index 0.
     """
-    predicted = simulate_tc2_from_tc1(tc1, float(tc2[0]), a1, a2)
+    bounds = [0, *(() if segment_starts is None else segment_starts.tolist()), tc1.size]
+    predicted = np.concatenate(
+        [
+            simulate_tc2_from_tc1(tc1[start:stop], float(tc2[start]), a1, a2)
+            for start, stop in zip(bounds[:-1], bounds[1:], strict=True)
+            if stop > start
+        ]
+    )
     spread = float(np.std(tc2))
     if spread == 0.0:
         return float("inf")

@@ -377,7 +377,9 @@ class OnlineCompensator:
             return EstimateStatus(
                 accepted=False, estimate=None, reason=str(exc), stamp_ns=self._newest_stamp
             )
-        fit = fit_error_percent(samples[:, 0], samples[:, 1], result.a1, result.a2)
+        fit = fit_error_percent(
+            samples[:, 0], samples[:, 1], result.a1, result.a2, window.segment_starts
+        )
         floor = self._noise_floor_percent(window, samples)
         model = math.sqrt(max(fit**2 - floor**2, 0.0))
         reason = ""

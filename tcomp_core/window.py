@@ -78,6 +78,12 @@ class SlidingBetaWindow:
         return self._buffer[self._start : self._end, :2].copy()
 
     @property
+    def segment_starts(self) -> NDArray[np.intp]:
+        """Indices (into :attr:`samples`) of the samples that follow a gap."""
+        flags = self._buffer[self._start + 1 : self._end, 2]
+        return np.flatnonzero(flags == 0.0) + 1
+
+    @property
     def rows(self) -> int:
         """Number of regression rows in the window (sample pairs that follow their predecessor)."""
         if len(self) < 2:

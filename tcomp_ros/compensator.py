@@ -1,0 +1,387 @@
+"""Compensator node: two Temperature topics in, reconstructed gas temperature and diagnostics out.
+
+Subscribes ``tc1/temperature`` and ``tc2/temperature`` (relative names, remappable), pairs their
+samples by ``header.stamp`` (:class:`~tcomp_ros.pairing.PairMatcher`), feeds the pairs to the
+core's :class:`~tcomp_core.online.OnlineCompensator`, re-estimates τ1 and τ2 on a timer and
+publishes ``gas_temperature`` (one message per reconstructed pair, stamped with that pair's
+sample time) and ``/diagnostics`` once a second.
+
+Subscription callbacks only append to an inbox; a 5 ms timer drains it in batches, so the cost
+per message stays a few microseconds and 2 × 5 kHz inputs fit in one Python thread.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Sequence
+from functools import partial
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Temperature
+
+from tcomp_core.errors import DataError
+from tcomp_core.estimators import METHODS
+from tcomp_core.online import RECONSTRUCT_FROM, EstimateStatus, OnlineCompensator, OnlineConfig
+
+from .health import SensorActivity, assess
+from .pairing import PairMatcher
+from .spin import spin_until_shutdown
+
+__all__ = ["CompensatorNode", "main"]
+
+#: Period of the timer that drains the inbox, match pairs and publishes, seconds.
+PROCESS_PERIOD_S = 0.005
+#: Period of the diagnostics, seconds (as diagnostic_updater's default).
+DIAGNOSTICS_PERIOD_S = 1.0
+INPUT_QOS = QoSProfile(
+    depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
+)
+OUTPUT_QOS = INPUT_QOS
+
+
+def _float_range(low: float, high: float) -> list[FloatingPointRange]:
+    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+
+
+def _descriptor(description: str, **kwargs) -> ParameterDescriptor:
+    return ParameterDescriptor(description=description, **kwargs)
+
+
+PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
+    "window_s": (
+        2.0,
+        _descriptor("estimation window length, s", floating_point_range=_float_range(0.05, 3600)),
+    ),
+    "update_period_s": (
+        0.5,
+        _descriptor("period of re-estimation, s", floating_point_range=_float_range(0.01, 60)),
+    ),
+    "method": (
+        "beta-gtls",
+        _descriptor("estimator", additional_constraints=f"one of {', '.join(METHODS)}"),
+    ),
+    "phi": (
+        1.0,
+        _descriptor(
+            "noise variance ratio sigma1^2/sigma2^2", floating_point_range=_float_range(1e-6, 1e6)
+        ),
+    ),
+    "prefilter_hz": (
+        0.0,
+        _descriptor(
+            "zero-phase pre-filter on the window before estimation, Hz (0 = off)",
+            floating_point_range=_float_range(0.0, 1e6),
+        ),
+    ),
+    "postfilter_hz": (
+        0.0,
+        _descriptor(
+            "causal Butterworth low-pass on gas_temperature, Hz (0 = off)",
+            floating_point_range=_float_range(0.0, 1e6),
+        ),
+    ),
+    "sync_slop_s": (
+        0.0,
+        _descriptor(
+            "largest stamp difference of a tc1/tc2 pair, s (0 = exact stamps)",
+            floating_point_range=_float_range(0.0, 1.0),
+        ),
+    ),
+    "reconstruct_from": (
+        "fused",
+        _descriptor(
+            "which reconstruction is published",
+            additional_constraints=f"one of {', '.join(RECONSTRUCT_FROM)}",
+        ),
+    ),
+    "hardware_id": ("thermocouple-pair", _descriptor("hardware_id of the diagnostic status")),
+    "sample_period_s": (
+        0.0,
+        _descriptor(
+            "sample period of the pairs, s (0 = learn from the stamps)",
+            floating_point_range=_float_range(0.0, 10.0),
+        ),
+    ),
+    "silence_timeout_s": (
+        1.0,
+        _descriptor(
+            "a sensor silent this long is an ERROR, s",
+            floating_point_range=_float_range(0.01, 3600),
+        ),
+    ),
+    "max_condition": (
+        1e3,
+        _descriptor(
+            "estimates with a larger condition figure are refused",
+            floating_point_range=_float_range(1.0, 1e12),
+        ),
+    ),
+    "max_model_error_pct": (
+        10.0,
+        _descriptor(
+            "model error above which the fit is poor (WARN), percent",
+            floating_point_range=_float_range(0.01, 1000),
+        ),
+    ),
+    "queue_size": (
+        2000,
+        _descriptor(
+            "unmatched samples kept per input",
+            integer_range=[IntegerRange(from_value=1, to_value=10**6, step=1)],
+        ),
+    ),
+    "frame_id": ("", _descriptor("frame_id of gas_temperature ('' = that of tc1)")),
+}
+
+#: Parameters that configure the numerical engine (tcomp_core.online.OnlineConfig).
+ENGINE_PARAMETERS = (
+    "window_s",
+    "method",
+    "phi",
+    "prefilter_hz",
+    "postfilter_hz",
+    "reconstruct_from",
+    "sample_period_s",
+    "max_condition",
+    "max_model_error_pct",
+)
+
+
+class CompensatorNode(Node):
+    """Two-thermocouple compensator; see the module notes.
+
+    Parameters
+    ----------
+    node_name : str
+        Node name ('compensator').
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ``namespace``).
+    """
+
+    def __init__(self, node_name: str = "compensator", **kwargs) -> None:
+        super().__init__(node_name, **kwargs)
+        for name, (default, descriptor) in PARAMETERS.items():
+            self.declare_parameter(name, default, descriptor)
+        self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self._engine = OnlineCompensator(self._engine_config(self._values))
+        self._matcher = self._new_matcher(self._values)
+        self._inbox: list[list[tuple[int, float]]] = [[], []]
+        self._sensors = [SensorActivity("tc1"), SensorActivity("tc2")]
+        self._last_heard = [math.nan, math.nan]
+        self._counted_at_report = [0, 0]
+        self._report_time = time.monotonic()
+        self._accepted_at = math.nan
+        self._frame_id = ""
+        self._published = 0
+        self._engine_errors = 0
+        self._status: EstimateStatus | None = None
+
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._gas_pub = self.create_publisher(Temperature, "gas_temperature", OUTPUT_QOS)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.create_subscription(
+            Temperature, "tc1/temperature", partial(self._on_sample, 0), INPUT_QOS
+        )
+        self.create_subscription(
+            Temperature, "tc2/temperature", partial(self._on_sample, 1), INPUT_QOS
+        )
+        self.create_timer(PROCESS_PERIOD_S, self._process)
+        self._estimate_timer = self.create_timer(
+            self._values["update_period_s"], self._update_estimate
+        )
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
+
+    # -- parameters --------------------------------------------------------------------------
+    @staticmethod
+    def _engine_config(values: dict[str, object]) -> OnlineConfig:
+        return OnlineConfig(**{name: values[name] for name in ENGINE_PARAMETERS})
+
+    @staticmethod
+    def _new_matcher(values: dict[str, object]) -> PairMatcher:
+        return PairMatcher(
+            slop_ns=round(float(values["sync_slop_s"]) * 1e9),
+            queue_size=int(values["queue_size"]),
+        )
+
+    def _on_set_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
+        """Validate a parameter change as a whole; apply it only when every value is sound."""
+        values = dict(self._values)
+        values.update({parameter.name: parameter.value for parameter in parameters})
+        try:
+            config = self._engine_config(values)
+        except (ValueError, TypeError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        changed = {name for name in values if values[name] != self._values[name]}
+        self._values = values
+        if changed & set(ENGINE_PARAMETERS):
+            self._engine.reconfigure(config)
+        if changed & {"sync_slop_s", "queue_size"}:
+            self._matcher = self._new_matcher(values)
+        if "update_period_s" in changed:
+            self._estimate_timer.cancel()
+            self.destroy_timer(self._estimate_timer)
+            self._estimate_timer = self.create_timer(
+                float(values["update_period_s"]), self._update_estimate
+            )
+        if changed:
+            self.get_logger().info(
+                "parameters changed: " + ", ".join(f"{n}={values[n]!r}" for n in sorted(changed))
+            )
+        return SetParametersResult(successful=True)
+
+    # -- data path ---------------------------------------------------------------------------
+    def _on_sample(self, index: int, message: Temperature) -> None:
+        stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+        value = message.temperature
+        sensor = self._sensors[index]
+        sensor.received += 1
+        self._last_heard[index] = time.monotonic()
+        if not math.isfinite(value):
+            sensor.invalid += 1
+            sensor.invalid_since_report += 1
+            sensor.last_invalid = f"{value!r} at stamp {stamp * 1e-9:.6f} s"
+            return
+        if index == 0 and not self._frame_id:
+            self._frame_id = message.header.frame_id
+        self._inbox[index].append((stamp, value))
+
+    def _process(self) -> None:
+        pairs: list[tuple[int, float, float]] = []
+        for index in (0, 1):
+            inbox, self._inbox[index] = self._inbox[index], []
+            for stamp, value in inbox:
+                pairs.extend(self._matcher.add(index, stamp, value))
+        if not pairs:
+            return
+        stamps, tc1, tc2 = zip(*pairs, strict=True)
+        try:
+            out_stamps, gas = self._engine.add_pairs(stamps, tc1, tc2)
+        except DataError as exc:  # never die on data: count, report, carry on
+            self._engine_errors += 1
+            self.get_logger().warning(f"pairs refused: {exc}", throttle_duration_sec=5.0)
+            return
+        frame_id = self._values["frame_id"] or self._frame_id
+        for stamp, value in zip(out_stamps.tolist(), gas.tolist(), strict=True):
+            message = Temperature()
+            message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            message.header.frame_id = frame_id
+            message.temperature = value
+            self._gas_pub.publish(message)
+        self._published += len(gas)
+
+    def _update_estimate(self) -> None:
+        status = self._engine.update_estimate()
+        self._status = status
+        if status.accepted:
+            self._accepted_at = time.monotonic()
+
+    # -- diagnostics -------------------------------------------------------------------------
+    def health_status(self) -> DiagnosticStatus:
+        """The current diagnostic status (also published once a second)."""
+        now = time.monotonic()
+        elapsed = max(now - self._report_time, 1e-9)
+        for index, sensor in enumerate(self._sensors):
+            sensor.silent_for_s = now - self._last_heard[index]
+            if math.isnan(sensor.silent_for_s):
+                sensor.silent_for_s = math.inf
+            sensor.rate_hz = (sensor.received - self._counted_at_report[index]) / elapsed
+        status = self._status
+        estimate = None if status is None else status.estimate
+        tau = self._engine.tau
+        counters = self._matcher.counters
+        values = {
+            "tau1_s": _fmt(tau[0] if tau else math.nan),
+            "tau2_s": _fmt(tau[1] if tau else math.nan),
+            "alpha": _fmt(tau[0] / tau[1] if tau else math.nan),
+            "method": str(self._values["method"]),
+            "window_samples": str(self._engine.window_samples),
+            "window_s": _fmt(float(self._values["window_s"])),
+            "sample_period_s": _fmt(self._engine.period_s or math.nan),
+            "rate_tc1_hz": _fmt(self._sensors[0].rate_hz),
+            "rate_tc2_hz": _fmt(self._sensors[1].rate_hz),
+            "received_tc1": str(self._sensors[0].received),
+            "received_tc2": str(self._sensors[1].received),
+            "matched": str(counters.matched),
+            "dropped": str(counters.unmatched + counters.late + counters.duplicates),
+            "unmatched": str(counters.unmatched),
+            "out_of_order": str(counters.late),
+            "duplicates": str(counters.duplicates),
+            "invalid_tc1": str(self._sensors[0].invalid),
+            "invalid_tc2": str(self._sensors[1].invalid),
+            "gaps": str(self._engine.counters["gaps"]),
+            "published": str(self._published),
+            "fit_error_pct": _fmt(status.fit_error_pct if status else math.nan),
+            "noise_floor_pct": _fmt(status.noise_floor_pct if status else math.nan),
+            "model_error_pct": _fmt(status.model_error_pct if status else math.nan),
+            "condition": _fmt(estimate.condition if estimate else math.nan),
+            "latest_tau1_s": _fmt(estimate.tau1 if estimate else math.nan),
+            "latest_tau2_s": _fmt(estimate.tau2 if estimate else math.nan),
+            "estimate_accepted": str(bool(status and status.accepted)).lower(),
+            "estimate_age_s": _fmt(now - self._accepted_at),
+            "last_reason": status.reason if status else "",
+        }
+        health = assess(
+            self._sensors,
+            silence_timeout_s=float(self._values["silence_timeout_s"]),
+            estimate_age_s=now - self._accepted_at
+            if math.isfinite(self._accepted_at)
+            else math.inf,
+            stale_after_s=3.0 * float(self._values["update_period_s"]) + DIAGNOSTICS_PERIOD_S,
+            status_reason=status.reason if status else "",
+            accepted=bool(status and status.accepted),
+            poor_fit=bool(status and status.poor_fit),
+            model_error_pct=status.model_error_pct if status else math.nan,
+            max_model_error_pct=float(self._values["max_model_error_pct"]),
+            values=values,
+        )
+        return DiagnosticStatus(
+            level=bytes([int(health.level)]),
+            name=f"tcomp: {self.get_name()}",
+            message=health.message,
+            hardware_id=str(self._values["hardware_id"]),
+            values=[KeyValue(key=key, value=value) for key, value in health.values.items()],
+        )
+
+    def publish_diagnostics(self) -> None:
+        """Publish the status on /diagnostics and start a new report period."""
+        status = self.health_status()
+        array = DiagnosticArray()
+        array.header.stamp = self.get_clock().now().to_msg()
+        array.status = [status]
+        self._diag_pub.publish(array)
+        self._report_time = time.monotonic()
+        self._counted_at_report = [sensor.received for sensor in self._sensors]
+        for sensor in self._sensors:
+            sensor.invalid_since_report = 0
+
+
+def _fmt(value: float) -> str:
+    return "nan" if not math.isfinite(value) else f"{value:.6g}"
+
+
+def main(args: Sequence[str] | None = None) -> int:
+    """Entry point of ``compensator_node`` (accepts ``--ros-args``)."""
+    rclpy.init(args=args)
+    node = CompensatorNode()
+    try:
+        spin_until_shutdown(node)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,52 @@
+"""Fixtures for launch-free, in-process rclpy tests (design.md, convention 8).
+
+Every test gets its own ``rclpy.context.Context`` on a domain id of its own, discovery limited to
+localhost, and a clean shutdown; ``spin_until`` spins an executor until a predicate holds or a
+deadline passes.
+"""
+
+import itertools
+import os
+import time
+
+import pytest
+
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+
+_domains = itertools.count()
+
+
+def next_domain_id() -> int:
+    """A domain id (1..200) unlikely to be shared with another test or a parallel run."""
+    return 1 + (os.getpid() * 13 + next(_domains)) % 200
+
+
+def spin_until_condition(executor, predicate, timeout_s: float) -> bool:
+    """Spin ``executor`` until ``predicate()`` is true or ``timeout_s`` passes; return the last."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        executor.spin_once(timeout_sec=0.01)
+    return bool(predicate())
+
+
+@pytest.fixture
+def ros_domain_id():
+    return next_domain_id()
+
+
+@pytest.fixture
+def ros_context(ros_domain_id):
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain_id)
+    yield context
+    rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def spin_until():
+    return spin_until_condition

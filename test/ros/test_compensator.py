@@ -1,0 +1,305 @@
+"""Launch-free, in-process tests of the compensator node (one Context per test)."""
+
+import math
+import time
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Temperature
+
+from tcomp_core.simulate import simulate_pair
+from tcomp_ros.compensator import CompensatorNode
+
+LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+
+
+class Harness:
+    """A compensator plus a test node that feeds it and records what it publishes."""
+
+    def __init__(self, context, executor_factory, spin_until, **parameters):
+        self.context = context
+        self.spin_until = spin_until
+        # Feeding pauses between steps of a test; only the silence test wants a short timeout.
+        parameters.setdefault("silence_timeout_s", 60.0)
+        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
+        self.node = CompensatorNode(context=context, parameter_overrides=overrides)
+        self.peer = context_node(context)
+        self.pub = [
+            self.peer.create_publisher(Temperature, "tc1/temperature", 1000),
+            self.peer.create_publisher(Temperature, "tc2/temperature", 1000),
+        ]
+        self.gas = []
+        self.sent = [0, 0]
+        self.diagnostics = []
+        self.peer.create_subscription(
+            Temperature,
+            "gas_temperature",
+            lambda m: self.gas.append(
+                (m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.temperature)
+            ),
+            10000,
+        )
+        self.peer.create_subscription(
+            DiagnosticArray, "/diagnostics", lambda m: self.diagnostics.append(m.status[0]), 100
+        )
+        self.executor = executor_factory(context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.peer)
+        self.spin_until(self.executor, lambda: self.pub[0].get_subscription_count() > 0, 5.0)
+
+    def send(self, index, stamp_ns, value):
+        message = Temperature()
+        message.header.stamp.sec, message.header.stamp.nanosec = divmod(int(stamp_ns), 10**9)
+        message.header.frame_id = "probe"
+        message.temperature = float(value)
+        self.pub[index].publish(message)
+        self.sent[index] += 1
+
+    def feed(self, stamps, tc1, tc2, batch=200):
+        for start in range(0, len(stamps), batch):
+            for k in range(start, min(start + batch, len(stamps))):
+                self.send(0, stamps[k], tc1[k])
+                self.send(1, stamps[k], tc2[k])
+            self.catch_up()
+
+    def catch_up(self, timeout=10.0):
+        """Spin until the node has received everything sent so far (keeps queues short)."""
+        sent = list(self.sent)
+        received = self.node._sensors
+        assert self.spin_until(
+            self.executor,
+            lambda: all(received[i].received >= sent[i] for i in (0, 1)),
+            timeout,
+        ), f"node received {[s.received for s in received]} of {sent}"
+
+    def settle(self, seconds):
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def next_diagnostics(self, predicate=lambda status: True, timeout=5.0, since=None):
+        """The first status matching ``predicate`` published after ``since`` (default: now)."""
+        seen = len(self.diagnostics) if since is None else since
+
+        def arrived():
+            return any(predicate(status) for status in self.diagnostics[seen:])
+
+        assert self.spin_until(self.executor, arrived, timeout), (
+            f"no matching diagnostics; last: {self.last_summary()}"
+        )
+        return next(status for status in self.diagnostics[seen:] if predicate(status))
+
+    def last_summary(self):
+        if not self.diagnostics:
+            return "none"
+        status = self.diagnostics[-1]
+        return f"{LEVELS[status.level[0]]}: {status.message} {values(status)}"
+
+
+def context_node(context):
+    from rclpy.node import Node
+
+    return Node("test_peer", context=context)
+
+
+def values(status):
+    return {item.key: item.value for item in status.values}
+
+
+def level(status):
+    return LEVELS[status.level[0]]
+
+
+def stamps_for(count, dt, start_s=100.0):
+    return (round(start_s * 1e9) + np.arange(count) * round(dt * 1e9)).astype(np.int64)
+
+
+@pytest.fixture
+def harness(ros_context, spin_until):
+    from rclpy.executors import SingleThreadedExecutor
+
+    made = []
+
+    def make(**parameters):
+        made.append(
+            Harness(
+                ros_context,
+                lambda context: SingleThreadedExecutor(context=context),
+                spin_until,
+                **parameters,
+            )
+        )
+        return made[-1]
+
+    yield make
+    for item in made:
+        item.executor.shutdown()
+        item.node.destroy_node()
+        item.peer.destroy_node()
+
+
+def test_tau_from_diagnostics_converges_within_two_percent(harness):
+    data = simulate_pair("ramp", noise_percent=0.5, duration=6.0, seed=5)
+    h = harness(window_s=4.0, update_period_s=0.2)
+    h.feed(stamps_for(data.tc1.size, data.dt), data.tc1, data.tc2)
+    status = h.next_diagnostics(lambda s: level(s) == "OK")
+    found = values(status)
+    assert status.name == "tcomp: compensator"
+    assert status.hardware_id == "thermocouple-pair"
+    assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.02)
+    assert float(found["tau2_s"]) == pytest.approx(data.tau2, rel=0.02)
+    assert float(found["alpha"]) == pytest.approx(data.tau1 / data.tau2, rel=0.03)
+    assert found["method"] == "beta-gtls"
+    assert int(found["window_samples"]) == 2000
+    assert int(found["matched"]) == data.tc1.size
+    for key in ("rate_tc1_hz", "rate_tc2_hz", "dropped", "invalid_tc1", "invalid_tc2"):
+        assert key in found
+    assert float(found["fit_error_pct"]) < 5.0
+    assert float(found["condition"]) >= 1.0
+
+
+def test_gas_temperature_stamps_count_and_values(harness):
+    data = simulate_pair("sinusoid", noise_percent=0.0, duration=5.0, seed=1)
+    stamps = stamps_for(data.tc1.size, data.dt)
+    h = harness(window_s=2.0, update_period_s=0.1)
+    first = 1500
+    h.feed(stamps[:first], data.tc1[:first], data.tc2[:first])
+    h.next_diagnostics(lambda s: values(s)["estimate_accepted"] == "true")
+    assert h.spin_until(h.executor, lambda: len(h.gas) == h.node._published, 5.0)
+    before = len(h.gas)
+    h.feed(stamps[first:], data.tc1[first:], data.tc2[first:])
+    expected = data.tc1.size - first
+    assert h.spin_until(h.executor, lambda: len(h.gas) - before >= expected, 10.0)
+    h.settle(0.2)
+    new = h.gas[before:]
+    assert len(new) == expected  # one message per matched pair
+    got_stamps = np.array([stamp for stamp, _ in new])
+    # Pair k reconstructs the gas held from its predecessor's stamp (Eq. 7).
+    np.testing.assert_array_equal(got_stamps, stamps[first - 1 : -1])
+    truth = data.gas[first - 1 : -1]
+    np.testing.assert_allclose([value for _, value in new], truth, rtol=1e-6)
+
+
+def test_parameter_change_applies_and_bad_value_is_rejected(harness):
+    h = harness()
+    node = h.node
+    result = node.set_parameters([Parameter("window_s", value=1.0)])[0]
+    assert result.successful
+    assert node.get_parameter("window_s").value == 1.0
+    assert node._engine.config.window_s == 1.0
+    for bad in (
+        Parameter("method", value="nope"),
+        Parameter("phi", value=-1.0),
+        Parameter("reconstruct_from", value="tc3"),
+        Parameter("window_s", value="long"),
+    ):
+        result = node.set_parameters([bad])[0]
+        assert not result.successful, bad.name
+    assert node.get_parameter("method").value == "beta-gtls"
+    assert node.get_parameter("phi").value == 1.0
+    assert node._engine.config.window_s == 1.0
+    assert node._engine.config.method == "beta-gtls"
+    # An atomic change with one bad value changes nothing.
+    results = node.set_parameters_atomically(
+        [Parameter("window_s", value=3.0), Parameter("method", value="nope")]
+    )
+    assert not results.successful
+    assert node.get_parameter("window_s").value == 1.0
+
+
+def test_method_change_at_run_time_takes_effect(harness):
+    data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=2)
+    h = harness(window_s=3.0, update_period_s=0.1)
+    h.feed(stamps_for(data.tc1.size, data.dt), data.tc1, data.tc2)
+    h.next_diagnostics(lambda s: level(s) == "OK")
+    assert h.node.set_parameters([Parameter("method", value="gamma-tls")])[0].successful
+    status = h.next_diagnostics(lambda s: values(s)["method"] == "gamma-tls")
+    assert float(values(status)["latest_tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
+
+
+def test_nan_samples_reported_and_node_carries_on(harness):
+    data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=3)
+    stamps = stamps_for(data.tc1.size, data.dt)
+    tc1 = data.tc1.copy()
+    tc1[[700, 701, 1200]] = [math.nan, math.inf, math.nan]
+    h = harness(window_s=2.0, update_period_s=0.1)
+    h.feed(stamps, tc1, data.tc2)
+    status = h.next_diagnostics(lambda s: level(s) == "ERROR", since=0)
+    assert "tc1 sent" in status.message and "non-finite" in status.message
+    assert "at stamp 101.40" in status.message or "at stamp 102.40" in status.message
+    # Their partners never pair: counted as unmatched, not lost silently.
+    later = stamps_for(1000, data.dt, start_s=100.0 + data.tc1.size * data.dt)
+    more = simulate_pair("ramp", noise_percent=0.5, duration=2.0, seed=4)
+    h.feed(later, more.tc1, more.tc2)
+    status = h.next_diagnostics(lambda s: level(s) == "OK")
+    assert values(status)["invalid_tc1"] == "3"
+    assert int(values(status)["unmatched"]) >= 3
+    assert int(values(status)["published"]) > 0
+
+
+def test_out_of_order_and_duplicate_stamps(harness):
+    data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=6)
+    stamps = stamps_for(data.tc1.size, data.dt)
+    h = harness(window_s=2.0, update_period_s=0.1)
+    h.feed(stamps[:1000], data.tc1[:1000], data.tc2[:1000])
+    h.settle(0.1)
+    h.send(0, stamps[500], data.tc1[500])  # late: long after its pair went out
+    h.send(1, stamps[10], data.tc2[10])
+    h.feed(stamps[1000:], data.tc1[1000:], data.tc2[1000:])
+    h.send(0, stamps[-1] + 10**6, 1.0)  # pending, then duplicated
+    h.send(0, stamps[-1] + 10**6, 1.0)
+    status = h.next_diagnostics(lambda s: int(values(s)["duplicates"]) >= 1)
+    found = values(status)
+    assert int(found["out_of_order"]) >= 2
+    assert int(found["matched"]) == data.tc1.size
+    assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
+
+
+def test_silent_sensor_is_an_error_and_recovery_is_seen(harness):
+    data = simulate_pair("ramp", noise_percent=0.5, duration=12.0, seed=8)
+    stamps = stamps_for(data.tc1.size, data.dt)
+    h = harness(window_s=2.0, update_period_s=0.1, silence_timeout_s=0.5)
+    h.feed(stamps[:1500], data.tc1[:1500], data.tc2[:1500])
+    # tc2 goes silent while tc1 goes on.
+    for k in range(1500, 2000):
+        h.send(0, stamps[k], data.tc1[k])
+    h.catch_up()
+    status = h.next_diagnostics(lambda s: "tc2 silent" in s.message)
+    assert level(status) == "ERROR"
+    # tc2 comes back; while data flow, the node recovers.
+    resumed = len(h.diagnostics)
+    h.feed(stamps[2000:], data.tc1[2000:], data.tc2[2000:])
+    recovered = [s for s in h.diagnostics[resumed:] if level(s) == "OK"]
+    assert recovered, h.last_summary()
+    found = values(recovered[-1])
+    assert int(found["gaps"]) >= 1
+    assert int(found["unmatched"]) >= 500
+    assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
+
+
+def test_sensors_at_different_rates_pair_within_slop(harness):
+    fast = simulate_pair("ramp", noise_percent=0.3, duration=5.0, dt=0.001, seed=9)
+    stamps = stamps_for(fast.tc1.size, fast.dt)
+    # tc2 sampled at half the rate, its clock 0.1 ms off.
+    h = harness(window_s=3.0, update_period_s=0.1, sync_slop_s=0.0004)
+    for start in range(0, stamps.size, 200):
+        for k in range(start, min(start + 200, stamps.size)):
+            h.send(0, stamps[k], fast.tc1[k])
+            if k % 2 == 0:
+                h.send(1, stamps[k] + 100_000, fast.tc2[k])
+        h.catch_up()
+    status = h.next_diagnostics(lambda s: level(s) == "OK")
+    found = values(status)
+    assert int(found["matched"]) == stamps.size // 2
+    assert float(found["sample_period_s"]) == pytest.approx(0.002, rel=1e-3)
+    assert float(found["tau1_s"]) == pytest.approx(fast.tau1, rel=0.02)
+    assert float(found["tau2_s"]) == pytest.approx(fast.tau2, rel=0.02)
+
+
+def test_stale_before_any_estimate(harness):
+    h = harness()
+    status = h.next_diagnostics()
+    assert level(status) in ("ERROR", "STALE")  # no data: sensors silent, no estimate
+    assert "never heard" in status.message or "no estimate" in status.message
