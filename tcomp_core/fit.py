@@ -13,6 +13,8 @@ regression residual it is not dominated by sample-to-sample noise at high sample
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
@@ -73,7 +75,7 @@ def fit_error_percent(
     predicted = np.concatenate(
         [
             simulate_tc2_from_tc1(tc1[start:stop], float(tc2[start]), a1, a2)
-            for start, stop in zip(bounds[:-1], bounds[1:], strict=True)
+            for start, stop in itertools.pairwise(bounds)
             if stop > start
         ]
     )

@@ -4,9 +4,9 @@ import sys
 
 import numpy as np
 import pytest
-from tcomp_core.io import read_record
 
 from tcomp_core.cli import build_parser, main
+from tcomp_core.io import read_record
 
 VERBS = ["simulate", "estimate", "reconstruct", "sweep", "study"]
 
