@@ -66,6 +66,8 @@ class Record:
         Sample interval, seconds.
     frame_id : str
         ``header.frame_id`` of the tc1 messages of a bag.
+    stamps_ns : ndarray of int64, shape (N,) or None
+        Exact ``header.stamp`` in nanoseconds (bags only); ``time`` is its float conversion.
     """
 
     time: NDArray[np.float64]
@@ -75,6 +77,7 @@ class Record:
     source: str
     dt: float
     frame_id: str = ""
+    stamps_ns: NDArray[np.int64] | None = None
 
 
 def _is_csv(path: Path) -> bool:
@@ -112,12 +115,25 @@ def _validated_record(
     ref: NDArray[np.float64] | None,
     time_name: str,
     frame_id: str = "",
+    stamps_ns: NDArray[np.int64] | None = None,
 ) -> Record:
+    # Integer stamps are checked as exact offsets from the first: absolute epoch seconds in
+    # float64 resolve only ~0.2 µs, too coarse for the spacing check at kHz rates.
+    relative = time if stamps_ns is None else (stamps_ns - stamps_ns[0]) * 1e-9
     try:
-        dt = sample_interval_from_time(time, name=time_name)
+        dt = sample_interval_from_time(relative, name=time_name)
     except DataError as exc:
         raise DataError(f"{source}: {exc}") from None
-    return Record(time=time, tc1=tc1, tc2=tc2, ref=ref, source=source, dt=dt, frame_id=frame_id)
+    return Record(
+        time=time,
+        tc1=tc1,
+        tc2=tc2,
+        ref=ref,
+        source=source,
+        dt=dt,
+        frame_id=frame_id,
+        stamps_ns=stamps_ns,
+    )
 
 
 def read_csv(path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMNS) -> Record:
@@ -310,6 +326,7 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
         series[ref_topic][1] if probe_ref else None,
         time_name=f"header.stamp of {tc1_topic}",
         frame_id=series[tc1_topic][2],
+        stamps_ns=stamps1,
     )
 
 
@@ -388,6 +405,8 @@ def write_bag(
     frame_id: str = "tc",
     variance: Mapping[str, float] | None = None,
     overwrite: bool = False,
+    compress: bool = False,
+    start_ns: int = 0,
 ) -> Path:
     """Write temperature series as a rosbag2 (version 9) MCAP bag.
 
@@ -409,10 +428,15 @@ def write_bag(
         ``variance`` field per topic (0, i.e. unknown, by default).
     overwrite : bool
         Replace an existing bag.
+    start_ns : int
+        Added to every stamp, nanoseconds: ``time`` can then be relative to an exact epoch.
+    compress : bool
+        Compress the MCAP chunks with zstd (storage-level compression, readable by
+        ``ros2 bag``, rosbags and the mcap tools).
     """
     import shutil
 
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
     path = Path(path)
@@ -424,9 +448,9 @@ def write_bag(
         else:
             path.unlink()
     times = check_finite(time, "time")
-    if times.size and times[0] < 0.0:
-        raise DataError(f"{path}: time starts at {float(times[0])!r} s; stamps must be >= 0")
-    stamps = np.rint(times * 1e9).astype(np.int64)
+    stamps = start_ns + np.rint(times * 1e9).astype(np.int64)
+    if stamps.size and stamps[0] < 0:
+        raise DataError(f"{path}: the first stamp is {int(stamps[0])} ns; stamps must be >= 0")
     typestore = get_typestore(Stores.ROS2_JAZZY)
     temperature_type = typestore.types[TEMPERATURE_TYPE]
     header_type = typestore.types["std_msgs/msg/Header"]
@@ -436,7 +460,10 @@ def write_bag(
         if values.shape != times.shape:
             raise DataError(f"{path}: topic {topic} has {values.size} samples, time {times.size}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    if compress:
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    with writer:
         connections = {
             topic: writer.add_connection(
                 topic, TEMPERATURE_TYPE, typestore=typestore, offered_qos_profiles=_offered_qos()

@@ -18,7 +18,7 @@ arrays this class takes and publishes what it returns.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal, get_args
 
 import numpy as np
@@ -27,7 +27,9 @@ from scipy import signal
 
 from .errors import DataError, TcompError
 from .estimators import METHODS, Estimate, beta_noise_covariance, estimate
-from .estimators.scatter import solve_gtls
+from .estimators.beta import estimate_beta_from_scatter
+from .estimators.scatter import beta_scatter, solve_gtls
+from .filters import prefilter
 from .fit import fit_error_percent
 from .reconstruct import combination_weight
 from .validation import MIN_SAMPLES
@@ -44,6 +46,8 @@ __all__ = [
 ReconstructFrom = Literal["fused", "tc1", "tc2"]
 RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
 
+#: Shortest gap-free segment worth pre-filtering (zero-phase filters need edge padding).
+MIN_PREFILTER_SAMPLES = 64
 #: Stamps used to learn the sample period when none is configured.
 PERIOD_LEARNING_SAMPLES = 64
 
@@ -365,14 +369,7 @@ class OnlineCompensator:
             if config.method in BETA_METHODS and config.prefilter_hz == 0.0:
                 result = window.estimate()
             else:
-                result = estimate(
-                    samples[:, 0],
-                    samples[:, 1],
-                    window.dt,
-                    config.method,  # type: ignore[arg-type]
-                    phi=config.phi if config.method == "beta-gtls" else 1.0,
-                    prefilter_hz=config.prefilter_hz or None,
-                )
+                result = self._estimate_segments(window, samples)
         except (TcompError, ValueError) as exc:
             return EstimateStatus(
                 accepted=False, estimate=None, reason=str(exc), stamp_ns=self._newest_stamp
@@ -397,6 +394,45 @@ class OnlineCompensator:
             model_error_pct=model,
             stamp_ns=self._newest_stamp,
             poor_fit=model > config.max_model_error_pct,
+        )
+
+    def _estimate_segments(
+        self, window: SlidingBetaWindow, samples: NDArray[np.float64]
+    ) -> Estimate:
+        """Batch estimate on the window's gap-free segments (pre-filtered, if configured).
+
+        A pre-filter run across a gap would smear the jump into the regression, so each segment
+        is filtered alone; β methods pool the segments' scatter matrices, the others use the
+        longest segment.
+        """
+        config = self._config
+        segments = np.split(samples, window.segment_starts)
+        prefilter_hz = config.prefilter_hz or None
+        phi = config.phi if config.method == "beta-gtls" else 1.0
+        if config.method in BETA_METHODS:
+            scatter = np.zeros((3, 3))
+            used = 0
+            for segment in segments:
+                if segment.shape[0] <= MIN_PREFILTER_SAMPLES:
+                    continue
+                first, second = segment[:, 0], segment[:, 1]
+                if prefilter_hz is not None:
+                    first = prefilter(first, window.dt, prefilter_hz)
+                    second = prefilter(second, window.dt, prefilter_hz)
+                scatter += beta_scatter(first, second)
+                used += segment.shape[0]
+            if used < MIN_SAMPLES:
+                raise DataError(f"the window's gap-free segments hold only {used} samples")
+            result = estimate_beta_from_scatter(scatter, window.dt, used, config.method, phi)
+            return result if prefilter_hz is None else replace(result, prefilter_hz=prefilter_hz)
+        longest = max(segments, key=len)
+        return estimate(
+            longest[:, 0],
+            longest[:, 1],
+            window.dt,
+            config.method,  # type: ignore[arg-type]
+            phi=phi,
+            prefilter_hz=prefilter_hz,
         )
 
     def _noise_floor_percent(

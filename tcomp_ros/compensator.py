@@ -199,7 +199,7 @@ class CompensatorNode(Node):
         )
         self.create_timer(PROCESS_PERIOD_S, self._process)
         self._estimate_timer = self.create_timer(
-            self._values["update_period_s"], self._update_estimate
+            self._values["update_period_s"], self.update_estimate
         )
         self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
 
@@ -233,7 +233,7 @@ class CompensatorNode(Node):
             self._estimate_timer.cancel()
             self.destroy_timer(self._estimate_timer)
             self._estimate_timer = self.create_timer(
-                float(values["update_period_s"]), self._update_estimate
+                float(values["update_period_s"]), self.update_estimate
             )
         if changed:
             self.get_logger().info(
@@ -281,7 +281,13 @@ class CompensatorNode(Node):
             self._gas_pub.publish(message)
         self._published += len(gas)
 
-    def _update_estimate(self) -> None:
+    @property
+    def matched_pairs(self) -> int:
+        """Sample pairs matched so far."""
+        return self._matcher.counters.matched
+
+    def update_estimate(self) -> None:
+        """Re-estimate τ1, τ2 now (the timer calls this every ``update_period_s``)."""
         status = self._engine.update_estimate()
         self._status = status
         if status.accepted:

@@ -1,54 +1,10 @@
-"""Shared fixtures: seeded simulated two-thermocouple records, cached per parameter set."""
+"""Shared fixtures: seeded simulated two-thermocouple records and a seeded generator."""
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
-
-from tcomp_core.simulate import simulate_pair
-
-
-@functools.lru_cache(maxsize=256)
-def _cached_pair(kind, tau1, tau2, dt, duration, noise_percent, phi, seed):
-    pair = simulate_pair(
-        kind,
-        tau1=tau1,
-        tau2=tau2,
-        dt=dt,
-        duration=duration,
-        noise_percent=noise_percent,
-        phi=phi,
-        seed=seed,
-    )
-    for array in (pair.time, pair.gas, pair.tc1, pair.tc2, pair.clean1, pair.clean2):
-        array.flags.writeable = False  # shared between tests: nobody may modify it
-    return pair
-
-
-def make_pair(
-    kind="sinusoid",
-    *,
-    tau1=0.0238,
-    tau2=0.1168,
-    dt=0.002,
-    duration=4.0,
-    noise_percent=0.0,
-    phi=1.0,
-    seed=0,
-):
-    """A seeded simulate_pair record (read-only arrays), cached across tests."""
-    return _cached_pair(
-        kind,
-        float(tau1),
-        float(tau2),
-        float(dt),
-        float(duration),
-        float(noise_percent),
-        float(phi),
-        int(seed),
-    )
+from sim_records import make_pair
 
 
 @pytest.fixture

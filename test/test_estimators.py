@@ -4,9 +4,9 @@ import re
 
 import numpy as np
 import pytest
-from conftest import make_pair
 from reference_impl import reference_estimate, tdr_kee_reference, true_params
 from scipy import signal as sps
+from sim_records import make_pair
 
 from tcomp_core import (
     METHODS,

@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import make_pair
+from sim_records import make_pair
 
 from tcomp_core import DataError, reconstruct
 from tcomp_core.filters import lowpass_sos, postfilter, prefilter

@@ -2,7 +2,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import make_pair
+from sim_records import make_pair
 
 from tcomp_core import DataError, SlidingBetaWindow, estimate
 from tcomp_core.estimators.scatter import beta_scatter
