@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -113,7 +114,7 @@ class ReplayNode(Node):
             self._simulate(value)
         else:
             raise DataError(f"source={value['source']!r} must be 'bag' or 'simulate'")
-        self._publishers = [
+        self._topic_publishers = [
             self.create_publisher(Temperature, topic, QOS) for topic in self.topics
         ]
         self._clock_publisher = (
@@ -180,7 +181,7 @@ class ReplayNode(Node):
         for index in range(self._next, end):
             stamp = int(self.stamps[index]) + shift
             sec, nanosec = divmod(stamp, 1_000_000_000)
-            for column, publisher in enumerate(self._publishers):
+            for column, publisher in enumerate(self._topic_publishers):
                 message = Temperature()
                 message.header.stamp.sec = sec
                 message.header.stamp.nanosec = nanosec
@@ -211,6 +212,9 @@ def main(args: Sequence[str] | None = None) -> int:
         rclpy.logging.get_logger("replay").error(str(exc))
         rclpy.try_shutdown()
         return 1
+    except (KeyboardInterrupt, ExternalShutdownException):  # stopped while loading
+        rclpy.try_shutdown()
+        return 0
     try:
         spin_until_shutdown(node, done=lambda: node.done)
     finally:

@@ -1,0 +1,86 @@
+"""Replay and compensator as separate processes talking over DDS; clean stop on signals."""
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+
+from tcomp_core.simulate import PAPER_TAU1, PAPER_TAU2
+
+BAGS = Path(__file__).resolve().parents[2] / "bags"
+
+
+def _start(module, domain_id, *ros_args):
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    return subprocess.Popen(
+        [sys.executable, "-m", module, "--ros-args", *ros_args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def _stop(process, signum=signal.SIGINT, timeout=10.0):
+    if process.poll() is None:
+        process.send_signal(signum)
+    try:
+        _, stderr = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        _, stderr = process.communicate()
+        pytest.fail(f"{process.args[2]} ignored signal {signum}: {stderr[-2000:]}")
+    return process.returncode, stderr
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, spin_until, signum):
+    compensator = _start(
+        "tcomp_ros.compensator",
+        ros_domain_id,
+        *("-p", "window_s:=4.0", "-p", "update_period_s:=0.25"),
+    )
+    replay = _start(
+        "tcomp_ros.replay",
+        ros_domain_id,
+        *("-p", f"bag:={BAGS / 'ramp_500hz'}", "-p", "rate:=2.0", "-p", "loop:=true"),
+    )
+    statuses = []
+    node = Node("watcher", context=ros_context)
+    node.create_subscription(
+        DiagnosticArray, "/diagnostics", lambda m: statuses.extend(m.status), 10
+    )
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+
+    def converged():
+        for status in statuses:
+            values = {item.key: item.value for item in status.values}
+            if status.level == b"\x00" and int(values["matched"]) >= 2500:
+                return True
+        return False
+
+    try:
+        assert spin_until(executor, converged, 40.0), [s.message for s in statuses[-3:]]
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        replay_code, replay_err = _stop(replay, signum)
+        compensator_code, compensator_err = _stop(compensator, signum)
+    status = next(s for s in statuses if s.level == b"\x00")
+    values = {item.key: item.value for item in status.values}
+    assert status.name == "tcomp: compensator"
+    assert float(values["tau1_s"]) == pytest.approx(PAPER_TAU1, rel=0.03)
+    assert float(values["tau2_s"]) == pytest.approx(PAPER_TAU2, rel=0.03)
+    assert values["dropped"] == "0"
+    assert (replay_code, compensator_code) == (0, 0), (replay_err[-2000:], compensator_err[-2000:])
+    assert "Traceback" not in replay_err + compensator_err
