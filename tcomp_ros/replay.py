@@ -4,7 +4,9 @@
 tc2 and the reference when present) in log-time order, at real time or ``rate`` × real time, on
 the bag's topic names made relative (``/tc1/temperature`` → ``tc1/temperature``) so that
 namespaces and remapping apply. Header stamps are the bag's, to the nanosecond. With ``loop``
-the bag restarts and its stamps are shifted by its length, so they keep increasing.
+the bag restarts and its stamps are shifted by its length plus :data:`LOOP_GAP_STEPS` sample
+steps, so they keep increasing and a consumer that watches for gaps (the compensator does) never
+links the last sample of one pass to the first of the next: the sensors' states jump there.
 ``publish_clock`` publishes ``/clock`` with the bag time for ``use_sim_time`` consumers.
 
 ``source: simulate`` generates live two-thermocouple data (:mod:`tcomp_core.simulate`) stamped
@@ -39,6 +41,8 @@ from .spin import spin_until_shutdown
 __all__ = ["ReplayNode", "main"]
 
 TICK_S = 0.005
+#: Sample steps left out between two passes of a looped bag (a visible gap in the stamps).
+LOOP_GAP_STEPS = 10
 QOS = QoSProfile(
     depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
 )
@@ -167,9 +171,9 @@ class ReplayNode(Node):
 
     @property
     def period_ns(self) -> int:
-        """Length of one pass, nanoseconds (last stamp - first stamp + one sample step)."""
+        """Stamp shift from one pass to the next, nanoseconds (length plus the loop gap)."""
         step = int(self.stamps[1] - self.stamps[0]) if self.stamps.size > 1 else 0
-        return int(self.stamps[-1] - self.stamps[0]) + step
+        return int(self.stamps[-1] - self.stamps[0]) + (1 + LOOP_GAP_STEPS) * step
 
     def _tick(self) -> None:
         if self.done:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import rclpy
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -37,7 +38,13 @@ def spin_until_shutdown(
     executor.add_node(node)
     try:
         while context.ok() and not done():
-            executor.spin_once(timeout_sec=timeout_sec)
+            try:
+                executor.spin_once(timeout_sec=timeout_sec)
+            except RCLError:
+                # A signal can shut the context down while a callback publishes; that error is
+                # the shutdown itself, anything else is not.
+                if context.ok():
+                    raise
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

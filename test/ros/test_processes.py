@@ -62,12 +62,12 @@ def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, sp
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
 
+    def is_converged(status):
+        values = {item.key: item.value for item in status.values}
+        return status.level == b"\x00" and int(values["matched"]) >= 2500
+
     def converged():
-        for status in statuses:
-            values = {item.key: item.value for item in status.values}
-            if status.level == b"\x00" and int(values["matched"]) >= 2500:
-                return True
-        return False
+        return any(is_converged(status) for status in statuses)
 
     try:
         assert spin_until(executor, converged, 40.0), [s.message for s in statuses[-3:]]
@@ -76,7 +76,7 @@ def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, sp
         node.destroy_node()
         replay_code, replay_err = _stop(replay, signum)
         compensator_code, compensator_err = _stop(compensator, signum)
-    status = next(s for s in statuses if s.level == b"\x00")
+    status = next(s for s in statuses if is_converged(s))
     values = {item.key: item.value for item in status.values}
     assert status.name == "tcomp: compensator"
     assert float(values["tau1_s"]) == pytest.approx(PAPER_TAU1, rel=0.03)

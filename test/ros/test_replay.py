@@ -15,7 +15,7 @@ from sensor_msgs.msg import Temperature
 
 from tcomp_core.errors import DataError
 from tcomp_core.io import write_bag
-from tcomp_ros.replay import ReplayNode
+from tcomp_ros.replay import LOOP_GAP_STEPS, ReplayNode
 from tcomp_ros.spin import make_executor
 
 TOPICS = ("tc1/temperature", "tc2/temperature", "tref/temperature")
@@ -119,7 +119,8 @@ def test_loop_replays_with_increasing_stamps(ros_context, spin_until, small_bag)
     got = np.array([stamp for stamp, _ in collector.received["tc1/temperature"]])
     assert np.all(np.diff(got) > 0)
     np.testing.assert_array_equal(got[: stamps.size], stamps)
-    assert got[stamps.size] == stamps[-1] + 1_000_000  # the next pass continues one step on
+    # The next pass leaves a gap of LOOP_GAP_STEPS samples, then continues at the bag's step.
+    assert got[stamps.size] == stamps[-1] + (1 + LOOP_GAP_STEPS) * 1_000_000
 
 
 def test_publish_clock(ros_context, spin_until, small_bag):
