@@ -6,8 +6,10 @@ core's :class:`~tcomp_core.online.OnlineCompensator`, re-estimates τ1 and τ2 o
 publishes ``gas_temperature`` (one message per reconstructed pair, stamped with that pair's
 sample time) and ``/diagnostics`` once a second.
 
-Subscription callbacks only append to an inbox; a 5 ms timer drains it in batches, so the cost
-per message stays a few microseconds and 2 × 5 kHz inputs fit in one Python thread.
+Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
+(:mod:`~tcomp_ros.temperature_cdr`, falling back to rclpy's deserializer for other layouts), and
+the callbacks only append to an inbox; a 5 ms timer drains it in batches and publishes serialized
+outputs, so the Python cost per message stays a few microseconds.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from rcl_interfaces.msg import (
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Temperature
 
 from tcomp_core.errors import DataError
@@ -38,6 +41,7 @@ from tcomp_core.online import RECONSTRUCT_FROM, EstimateStatus, OnlineCompensato
 from .health import SensorActivity, assess
 from .pairing import PairMatcher
 from .spin import spin_until_shutdown
+from .temperature_cdr import Encoder, decode
 
 __all__ = ["CompensatorNode", "main"]
 
@@ -191,12 +195,11 @@ class CompensatorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._gas_pub = self.create_publisher(Temperature, "gas_temperature", OUTPUT_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(
-            Temperature, "tc1/temperature", partial(self._on_sample, 0), INPUT_QOS
-        )
-        self.create_subscription(
-            Temperature, "tc2/temperature", partial(self._on_sample, 1), INPUT_QOS
-        )
+        for index, topic in enumerate(("tc1/temperature", "tc2/temperature")):
+            self.create_subscription(
+                Temperature, topic, partial(self._on_sample, index), INPUT_QOS, raw=True
+            )
+        self._encoder = Encoder("")
         self.create_timer(PROCESS_PERIOD_S, self._process)
         self._estimate_timer = self.create_timer(
             self._values["update_period_s"], self.update_estimate
@@ -242,9 +245,13 @@ class CompensatorNode(Node):
         return SetParametersResult(successful=True)
 
     # -- data path ---------------------------------------------------------------------------
-    def _on_sample(self, index: int, message: Temperature) -> None:
-        stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
-        value = message.temperature
+    def _on_sample(self, index: int, data: bytes) -> None:
+        try:
+            stamp, frame_id, value, _ = decode(data)
+        except ValueError:  # another CDR layout: let rclpy decode it
+            message = deserialize_message(data, Temperature)
+            stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+            frame_id, value = message.header.frame_id, message.temperature
         sensor = self._sensors[index]
         sensor.received += 1
         self._last_heard[index] = time.monotonic()
@@ -254,7 +261,7 @@ class CompensatorNode(Node):
             sensor.last_invalid = f"{value!r} at stamp {stamp * 1e-9:.6f} s"
             return
         if index == 0 and not self._frame_id:
-            self._frame_id = message.header.frame_id
+            self._frame_id = frame_id
         self._inbox[index].append((stamp, value))
 
     def _process(self) -> None:
@@ -273,12 +280,11 @@ class CompensatorNode(Node):
             self.get_logger().warning(f"pairs refused: {exc}", throttle_duration_sec=5.0)
             return
         frame_id = self._values["frame_id"] or self._frame_id
+        if frame_id != self._encoder.frame_id:
+            self._encoder = Encoder(frame_id)
+        encode, publish = self._encoder.encode, self._gas_pub.publish
         for stamp, value in zip(out_stamps.tolist(), gas.tolist(), strict=True):
-            message = Temperature()
-            message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-            message.header.frame_id = frame_id
-            message.temperature = value
-            self._gas_pub.publish(message)
+            publish(encode(stamp, value))
         self._published += len(gas)
 
     @property
