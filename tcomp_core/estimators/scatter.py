@@ -101,11 +101,17 @@ def accumulate_scatter(
     ndarray, shape (width, width)
     """
     scatter = np.zeros((width, width))
-    for start in range(0, tc1.size - 1, chunk_rows):
-        stop = min(start + chunk_rows + 1, tc1.size)
-        rows = rows_of(tc1[start:stop], tc2[start:stop])
+    for first, second in _overlapping_chunks(tc1, tc2, chunk_rows):
+        rows = rows_of(first, second)
         scatter += rows.T @ rows
     return scatter
+
+
+def _overlapping_chunks(tc1, tc2, chunk_rows: int):
+    """Slices of ``chunk_rows + 1`` samples, each starting at the previous one's last sample."""
+    for start in range(0, tc1.size - 1, chunk_rows):
+        stop = min(start + chunk_rows + 1, tc1.size)
+        yield tc1[start:stop], tc2[start:stop]
 
 
 def accumulate_r_factor(
@@ -128,10 +134,8 @@ def accumulate_r_factor(
         Upper triangular.
     """
     factor = np.zeros((0, width))
-    for start in range(0, tc1.size - 1, chunk_rows):
-        stop = min(start + chunk_rows + 1, tc1.size)
-        stacked = np.vstack((factor, rows_of(tc1[start:stop], tc2[start:stop])))
-        factor = np.linalg.qr(stacked, mode="r")
+    for first, second in _overlapping_chunks(tc1, tc2, chunk_rows):
+        factor = np.linalg.qr(np.vstack((factor, rows_of(first, second))), mode="r")
     if factor.shape[0] < width:
         factor = np.vstack((factor, np.zeros((width - factor.shape[0], width))))
     return factor
