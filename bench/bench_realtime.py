@@ -728,6 +728,7 @@ def print_table(args, baselines: list[dict], comp: dict, stats: dict) -> None:
         "tau2_s",
         "model_error_pct",
         "estimate_accepted",
+        "latency_p99_total_ms",
     ):
         row(key, diag.get(key, "n/a"))
     row("node stop on SIGINT", json.dumps(comp["node_stop"]))

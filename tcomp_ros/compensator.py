@@ -20,6 +20,7 @@ import time
 from collections.abc import Sequence
 from functools import partial
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import (
@@ -190,6 +191,7 @@ class CompensatorNode(Node):
         self._frame_id = ""
         self._published = 0
         self._engine_errors = 0
+        self._latency = LatencyHistogram()
         self._status: EstimateStatus | None = None
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -286,6 +288,10 @@ class CompensatorNode(Node):
         for stamp, value in zip(out_stamps.tolist(), gas.tolist(), strict=True):
             publish(encode(stamp, value))
         self._published += len(gas)
+        if gas.size and self._engine.period_s:
+            # From the stamp of the input pair that completed each output to its publication.
+            inputs = out_stamps + round(self._engine.period_s * 1e9)
+            self._latency.add((time.time_ns() - inputs) * 1e-6)
 
     @property
     def matched_pairs(self) -> int:
@@ -343,6 +349,7 @@ class CompensatorNode(Node):
             "estimate_accepted": str(bool(status and status.accepted)).lower(),
             "estimate_age_s": _fmt(now - self._accepted_at),
             "last_reason": status.reason if status else "",
+            **self._latency.summary(),
         }
         health = assess(
             self._sensors,
@@ -377,10 +384,53 @@ class CompensatorNode(Node):
         self._counted_at_report = [sensor.received for sensor in self._sensors]
         for sensor in self._sensors:
             sensor.invalid_since_report = 0
+        self._latency.new_period()
 
 
 def _fmt(value: float) -> str:
     return "nan" if not math.isfinite(value) else f"{value:.6g}"
+
+
+class LatencyHistogram:
+    """Publish latencies in 0.1 ms bins (0–2 s), for this report period and since the start.
+
+    Latency is measured against the node's wall clock, so it is meaningful when the input stamps
+    come from a synchronised clock (live sensors); replayed bags carry old stamps.
+    """
+
+    BIN_MS = 0.1
+    BINS = 20_000
+
+    def __init__(self) -> None:
+        self._total = np.zeros(self.BINS, dtype=np.int64)
+        self._period = np.zeros(self.BINS, dtype=np.int64)
+
+    def add(self, latencies_ms: np.ndarray) -> None:
+        """Count a batch of latencies, milliseconds (clipped to the histogram's range)."""
+        bins = np.clip((latencies_ms / self.BIN_MS).astype(np.int64), 0, self.BINS - 1)
+        counts = np.bincount(bins, minlength=self.BINS)
+        self._total += counts
+        self._period += counts
+
+    def new_period(self) -> None:
+        """Start a new report period."""
+        self._period[:] = 0
+
+    def summary(self) -> dict[str, str]:
+        """p50 / p99 / max of the period and p99 since the start, milliseconds."""
+        return {
+            "latency_p50_ms": _fmt(self._quantile(self._period, 0.50)),
+            "latency_p99_ms": _fmt(self._quantile(self._period, 0.99)),
+            "latency_max_ms": _fmt(self._quantile(self._period, 1.0)),
+            "latency_p99_total_ms": _fmt(self._quantile(self._total, 0.99)),
+        }
+
+    def _quantile(self, counts: np.ndarray, q: float) -> float:
+        total = int(counts.sum())
+        if total == 0:
+            return math.nan
+        index = int(np.searchsorted(np.cumsum(counts), math.ceil(q * total)))
+        return (index + 1) * self.BIN_MS
 
 
 def main(args: Sequence[str] | None = None) -> int:

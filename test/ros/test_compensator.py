@@ -156,6 +156,8 @@ def test_tau_from_diagnostics_converges_within_two_percent(harness):
     assert int(found["matched"]) == data.tc1.size
     for key in ("rate_tc1_hz", "rate_tc2_hz", "dropped", "invalid_tc1", "invalid_tc2"):
         assert key in found
+    # Stamps here are ~100 s after the epoch, so the wall-clock latency is huge but measured.
+    assert float(found["latency_p99_total_ms"]) == pytest.approx(2000.0)
     assert float(found["fit_error_pct"]) < 5.0
     assert float(found["condition"]) >= 1.0
 
@@ -303,3 +305,17 @@ def test_stale_before_any_estimate(harness):
     status = h.next_diagnostics()
     assert level(status) in ("ERROR", "STALE")  # no data: sensors silent, no estimate
     assert "never heard" in status.message or "no estimate" in status.message
+
+
+def test_latency_histogram_quantiles():
+    from tcomp_ros.compensator import LatencyHistogram
+
+    histogram = LatencyHistogram()
+    histogram.add(np.arange(1, 101, dtype=float))  # 1..100 ms
+    summary = histogram.summary()
+    assert float(summary["latency_p50_ms"]) == pytest.approx(50.1, abs=0.11)
+    assert float(summary["latency_p99_ms"]) == pytest.approx(99.1, abs=0.11)
+    assert float(summary["latency_max_ms"]) == pytest.approx(100.1, abs=0.11)
+    histogram.new_period()
+    assert histogram.summary()["latency_p50_ms"] == "nan"
+    assert float(histogram.summary()["latency_p99_total_ms"]) == pytest.approx(99.1, abs=0.11)
