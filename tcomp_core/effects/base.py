@@ -1,0 +1,156 @@
+"""What a physical effect is: named parameters and hooks into the two-sensor chain.
+
+The base model (Eq. 2) says each thermocouple is a first-order lag of the same gas temperature.
+An effect extends it with parameters of its own and changes one stage of how a measurement maps
+to the gas temperature (see :mod:`tcomp_core.effects.chain`):
+
+    measured -> [calibration] -> [conduction pre-filter] -> first-order inverse
+             (with [velocity]-scaled τ and the [radiation] loss) -> [delay] -> gas temperature
+
+Every hook has a neutral default, so an effect overrides only its own stage and any set of
+effects composes. Sensor numbers are 1 and 2 (thin and thick wire in the paper's notation).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["KELVIN", "Effect", "FitContext", "ParamSpec"]
+
+#: Offset between degrees Celsius and kelvin.
+KELVIN = 273.15
+
+
+@dataclass(frozen=True, kw_only=True)
+class ParamSpec:
+    """One fitted parameter of an effect.
+
+    Attributes
+    ----------
+    name : str
+        Key in the model's parameter dict (unique across effects).
+    unit : str
+        Unit for reports (``"s"``, ``"1"``, ``"degC"``...).
+    lower, upper : float
+        Bounds of the search.
+    description : str
+        One line for reports.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    description: str
+
+    def __post_init__(self) -> None:
+        if not self.lower < self.upper:
+            raise ValueError(f"{self.name}: bounds {self.lower} .. {self.upper} are empty")
+
+
+@dataclass(frozen=True, kw_only=True)
+class FitContext:
+    """Facts of one record that effects need for their parameters and shapes.
+
+    Attributes
+    ----------
+    dt : float
+        Sample interval, s.
+    time : ndarray, shape (N,)
+        Sample times from 0, s.
+    level_mean_c, level_std_c : float
+        Mean and standard deviation of the measured temperatures, degrees C.
+    knot_spacing_s : float
+        Spacing of the spline knots of slowly varying quantities (velocity), s.
+    phi_hat : float
+        Noise variance ratio σ1²/σ2² estimated from the spectra.
+    tau_scale_s : float
+        A rough time constant of the slower sensor, s, to scale delays and slow modes.
+    sigma2 : float
+        Noise standard deviation of thermocouple 2, degrees C: the unit of the fit's residuals,
+        so that penalties weigh against residuals of order one.
+    """
+
+    dt: float
+    time: NDArray[np.float64]
+    level_mean_c: float
+    level_std_c: float
+    knot_spacing_s: float
+    phi_hat: float
+    tau_scale_s: float
+    sigma2: float = 1.0
+
+    @property
+    def duration_s(self) -> float:
+        """Record length, s."""
+        return float(self.time[-1] - self.time[0]) + self.dt
+
+
+class Effect:
+    """Base class of the effects; the hooks return the neutral value (no change)."""
+
+    #: Name used in the API, CLI, JSON and diagnostics.
+    name: ClassVar[str] = ""
+    #: One line: what is physically missing from the base model.
+    summary: ClassVar[str] = ""
+
+    def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
+        """The effect's fitted parameters and their bounds for this record."""
+        return ()
+
+    def starts(
+        self,
+        context: FitContext,
+        params: Mapping[str, float],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+    ) -> list[dict[str, float]]:
+        """Initial values, one dict per start of the search.
+
+        A dict holds the effect's own parameters and may also restart ``tau1``/``tau2``
+        (for effects that shift the time constants far from the base model's).
+        """
+        return [{}]
+
+    def fixed(self, context: FitContext) -> dict[str, float]:
+        """Parameters set from the data outside the fit (not searched), by name."""
+        return {}
+
+    def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
+        """Extra least-squares residuals regularising the parameters (none by default)."""
+        return np.empty(0)
+
+    # Hooks into the sensor chain (see tcomp_core.effects.chain), neutral by default.
+
+    def calibration(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float]:
+        """``(gain, offset_c)``: the sensor reads ``gain * T + offset_c``."""
+        return 1.0, 0.0
+
+    def conduction(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float] | None:
+        """``(kappa, tau_p_s)`` of conduction to the supports, or None."""
+        return None
+
+    def tau_factor(
+        self, context: FitContext, params: Mapping[str, float]
+    ) -> NDArray[np.float64] | None:
+        """Per-sample factor s(t) on both time constants, shape (N,), or None."""
+        return None
+
+    def radiation(
+        self, sensor: int, params: Mapping[str, float], context: FitContext
+    ) -> tuple[float, float] | None:
+        """``(r, wall_k)``: loss ``r (T⁴ - T_w⁴)`` in kelvin with r in K⁻³, or None."""
+        return None
+
+    def delay_s(self, params: Mapping[str, float]) -> float:
+        """How much later sensor 2 sees the gas than sensor 1, s."""
+        return 0.0
+
+    def noise_ratio(self, params: Mapping[str, float]) -> float | None:
+        """Noise variance ratio φ = σ1²/σ2² the fit assumes, or None for the default 1."""
+        return None

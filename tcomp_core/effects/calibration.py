@@ -1,0 +1,57 @@
+"""A calibration error: gain and offset of one sensor relative to the other.
+
+Only the relative calibration is visible from two sensors: the fit says tc2 reads
+``gain * T + offset_c`` where tc1 reads T. A gain or offset error of tc1 shows up as the
+reciprocal gain and a scaled offset; the time constants are unaffected.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .base import Effect, FitContext, ParamSpec
+
+__all__ = ["Calibration"]
+
+
+class Calibration(Effect):
+    """Gain (dimensionless) and offset (degrees C) of tc2 relative to tc1."""
+
+    name = "calibration"
+    summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
+
+    def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
+        span = abs(context.level_mean_c) + 10.0 * context.level_std_c + 10.0
+        return (
+            ParamSpec(
+                name="gain",
+                unit="1",
+                lower=0.5,
+                upper=2.0,
+                description="gain of tc2 relative to tc1",
+            ),
+            ParamSpec(
+                name="offset_c",
+                unit="degC",
+                lower=-span,
+                upper=span,
+                description="offset of tc2 relative to tc1",
+            ),
+        )
+
+    def starts(
+        self,
+        context: FitContext,
+        params: Mapping[str, float],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+    ) -> list[dict[str, float]]:
+        return [{"gain": 1.0, "offset_c": 0.0}]
+
+    def calibration(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float]:
+        if sensor == 2:
+            return params["gain"], params["offset_c"]
+        return 1.0, 0.0

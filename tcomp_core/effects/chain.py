@@ -1,0 +1,247 @@
+"""One sensor's chain between the gas temperature and its reading, both ways.
+
+The base stage is the exact zero-order-hold first-order lag (Eq. 4),
+
+    T[k+1] = a_k T[k] + (1 - a_k) u[k],    a_k = exp(-dt / τ_k),
+
+whose inverse gives the gas temperature u[k] held over [t_k, t_k+1) from two readings. The
+effects wrap it (see :mod:`tcomp_core.effects.base`):
+
+* calibration: the sensor reads ``gain T + offset``;
+* conduction: G = F⁻¹ L with F(s) = (1 + τp s)/(1 + κ + τp s) (bilinear) and L a first-order lag
+  of time constant τ/(1 + κ) and DC gain 1/(1 + κ);
+* velocity: τ_k = τ s(t_k);
+* radiation: the lag is driven by u − r (T⁴ − T_w⁴), the loss taken at T[k] so that the forward
+  recurrence stays explicit and is the exact inverse of the backward one;
+* delay: the sensor sees u(t − δ); a cubic Lagrange interpolator shifts its readings by
+  fractions of a sample (equivalent by time invariance, and the readings are smoother).
+
+The inverse and the forward direction are exact inverses of each other in discrete time (up to
+the interpolation of a delay), so a model simulated forward and inverted again returns its input.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from .base import KELVIN
+
+__all__ = ["SensorChain", "fractional_shift", "gas_from_reading", "reading_from_gas"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorChain:
+    """The resolved parameters of one sensor.
+
+    Attributes
+    ----------
+    tau : float
+        Convective time constant, s.
+    gain, offset : float
+        The sensor reads ``gain * T + offset`` (degrees C).
+    kappa, tau_p : float
+        Conduction ratio and slow-mode time constant (s); ``kappa = 0`` means none.
+    factor : ndarray, shape (N,), or None
+        Per-sample factor on τ (velocity), or None for a constant τ.
+    r, wall_k : float
+        Radiation coefficient (K⁻³) and wall temperature (K); ``r = 0`` means none.
+    delay_s : float
+        How much later than the common time base the sensor sees the gas, s.
+    """
+
+    tau: float
+    gain: float = 1.0
+    offset: float = 0.0
+    kappa: float = 0.0
+    tau_p: float = 1.0
+    factor: NDArray[np.float64] | None = None
+    r: float = 0.0
+    wall_k: float = 0.0
+    delay_s: float = 0.0
+
+    def poles(self, n: int, dt: float) -> NDArray[np.float64]:
+        """Discrete pole of every interval, shape (n - 1,)."""
+        tau = self.tau / (1.0 + self.kappa)
+        if self.factor is None:
+            return np.full(n - 1, math.exp(-dt / tau))
+        return np.exp(-dt / (tau * self.factor[:-1]))
+
+    def support_filters(self, dt: float) -> tuple[tuple, tuple] | None:
+        """Bilinear ``(b, a)`` of F and of F⁻¹ (conduction), or None."""
+        if self.kappa == 0.0:
+            return None
+        fs = 1.0 / dt
+        forward = signal.bilinear([self.tau_p, 1.0], [self.tau_p, 1.0 + self.kappa], fs)
+        inverse = signal.bilinear([self.tau_p, 1.0 + self.kappa], [self.tau_p, 1.0], fs)
+        return forward, inverse
+
+
+def _steady_filter(b, a, values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``lfilter`` started in the steady state of its first input value."""
+    zi = signal.lfilter_zi(b, a) * values[0]
+    return signal.lfilter(b, a, values, zi=zi)[0]
+
+
+def fractional_shift(values: NDArray[np.float64], shift: float) -> tuple[NDArray, NDArray]:
+    """Evaluate a sampled series at index ``k + shift`` by cubic Lagrange interpolation.
+
+    Parameters
+    ----------
+    values : ndarray, shape (M,)
+    shift : float
+        Shift in samples; positive reads later samples.
+
+    Returns
+    -------
+    shifted : ndarray, shape (M,)
+        NaN where the 4-point stencil leaves the record.
+    weights : ndarray, shape (4,)
+        The interpolation weights.
+    """
+    whole = math.floor(shift)
+    f = shift - whole
+    if f < 1e-12:
+        weights = np.array([0.0, 1.0, 0.0, 0.0])
+    else:
+        weights = np.array(
+            [
+                -f * (f - 1.0) * (f - 2.0) / 6.0,
+                (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0,
+                -(f + 1.0) * f * (f - 2.0) / 2.0,
+                (f + 1.0) * f * (f - 1.0) / 6.0,
+            ]
+        )
+    m = values.size
+    shifted = np.full(m, np.nan)
+    # Output k uses values[k + whole - 1 .. k + whole + 2].
+    lo = max(0, 1 - whole)
+    hi = min(m, m - whole - 2)
+    if hi > lo:
+        k = np.arange(lo, hi)
+        shifted[lo:hi] = sum(w * values[k + whole - 1 + j] for j, w in enumerate(weights))
+    return shifted, weights
+
+
+def _fill_edges(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Replace NaN at the ends by the nearest finite value."""
+    finite = np.flatnonzero(np.isfinite(values))
+    if finite.size == values.size or finite.size == 0:
+        return values
+    out = values.copy()
+    out[: finite[0]] = values[finite[0]]
+    out[finite[-1] + 1 :] = values[finite[-1]]
+    return out
+
+
+def gas_from_reading(
+    chain: SensorChain, reading: NDArray[np.float64], dt: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gas temperature on the common time base from one sensor's readings.
+
+    Parameters
+    ----------
+    chain : SensorChain
+    reading : ndarray, shape (N,)
+        The sensor's readings, degrees C.
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    gas : ndarray, shape (N - 1,)
+        Gas temperature held over [t_k, t_k+1), degrees C; NaN where a delay shifts it out of
+        the record.
+    noise_gain : ndarray, shape (N - 1,)
+        Variance of ``gas`` per unit variance of white noise on the readings.
+    """
+    weights = np.array([1.0])
+    edges = None
+    if chain.delay_s:
+        # The chain is time-invariant, so advancing the reading advances the gas; the reading
+        # is smooth (low-passed by the sensor), so it interpolates far better than the gas.
+        reading, weights = fractional_shift(reading, chain.delay_s / dt)
+        edges = ~np.isfinite(reading)
+        reading = _fill_edges(reading)
+    true = (reading - chain.offset) / chain.gain
+    filters = chain.support_filters(dt)
+    lagged = true if filters is None else _steady_filter(*filters[0], true)
+    a = chain.poles(reading.size, dt)
+    scale = 1.0 + chain.kappa
+    gas = scale * (lagged[1:] - a * lagged[:-1]) / (1.0 - a)
+    tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
+    if chain.r:
+        kelvin = scale * lagged[:-1] + KELVIN
+        gas = gas + chain.r * (kelvin**4 - chain.wall_k**4)
+        tap = a - 4.0 * chain.r * kelvin**3 * (1.0 - a) / scale
+    if edges is not None:
+        gas[edges[1:] | edges[:-1]] = np.nan
+    # The noise of u[k] is (scale/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation
+    # term's slope; an interpolator with weights w turns the taps into w ⊛ (-c, 1), whose
+    # energy is (1 + c²) Σw² - 2c Σ w_j w_(j+1).
+    energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
+    noise_gain = (scale / chain.gain) ** 2 * energy / (1.0 - a) ** 2
+    return gas, noise_gain
+
+
+def reading_from_gas(
+    chain: SensorChain, gas: NDArray[np.float64], dt: float, initial_reading: float
+) -> NDArray[np.float64]:
+    """Simulate one sensor's readings from the gas temperature (the forward chain).
+
+    Parameters
+    ----------
+    chain : SensorChain
+    gas : ndarray, shape (N - 1,)
+        Gas temperature on the common time base, held over each interval, degrees C. NaN at
+        the ends are replaced by the nearest finite value.
+    dt : float
+        Sample interval, s.
+    initial_reading : float
+        The reading at sample 0 (the sensor starts in equilibrium with it), degrees C.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Simulated readings, degrees C.
+    """
+    seen = _fill_edges(gas)
+    n = seen.size + 1
+    a = chain.poles(n, dt)
+    scale = 1.0 + chain.kappa
+    start = (initial_reading - chain.offset) / chain.gain / scale
+    drive = seen / scale
+    if chain.r == 0.0 and chain.factor is None:
+        lagged = np.concatenate(
+            ([start], signal.lfilter([1.0 - a[0]], [1.0, -a[0]], drive, zi=[a[0] * start])[0])
+        )
+    else:
+        lagged = _lag_loop(drive, a, start, chain.r / scale, scale, chain.wall_k**4)
+    filters = chain.support_filters(dt)
+    true = lagged if filters is None else _steady_filter(*filters[1], lagged)
+    reading = chain.gain * true + chain.offset
+    if chain.delay_s:
+        reading = _fill_edges(fractional_shift(reading, -chain.delay_s / dt)[0])
+    return reading
+
+
+def _lag_loop(
+    drive: NDArray[np.float64],
+    a: NDArray[np.float64],
+    start: float,
+    r_scaled: float,
+    scale: float,
+    wall4: float,
+) -> NDArray[np.float64]:
+    """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r' ((s y[k] + K)^4 - T_w^4))."""
+    out = [start]
+    y = start
+    for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
+        loss = r_scaled * ((scale * y + KELVIN) ** 4 - wall4) if r_scaled else 0.0
+        y = pole * y + (1.0 - pole) * (u - loss)
+        out.append(y)
+    return np.asarray(out)

@@ -1,0 +1,357 @@
+"""A two-thermocouple model: the first-order base plus any set of effects, and its fit.
+
+The fit minimises the cross-relation criterion
+
+    J(θ) = Σ_k (u1[k] − u2[k])² / (φ g1[k] + g2[k]),
+
+where u_i is the gas temperature reconstructed from sensor i through its chain
+(:mod:`tcomp_core.effects.chain`) and g_i the white-noise variance gain of that
+reconstruction, so the denominator is the noise variance of the difference in units of σ2².
+For the base model this is exactly the generalised total least squares criterion of β-GTLS
+(Eqs. 18–21): both divide the squared equation error by its own noise variance. The same
+criterion for every model makes their held-out errors comparable, and φ enters it as it enters
+C0(φ).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from ..errors import EstimationError
+from .base import Effect, FitContext, ParamSpec
+from .chain import SensorChain, gas_from_reading, reading_from_gas
+
+__all__ = ["Model", "make_context"]
+
+#: Evaluations allowed to each start of a multi-start search before the best is polished.
+_SCOUT_EVALUATIONS = 30
+
+
+def make_context(
+    time: NDArray[np.float64],
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    *,
+    phi_hat: float = 1.0,
+    knot_spacing_s: float | None = None,
+    tau_scale_s: float | None = None,
+    sigma2: float = 1.0,
+) -> FitContext:
+    """Build the :class:`FitContext` of a record.
+
+    Parameters
+    ----------
+    time : ndarray, shape (N,)
+        Sample times, s (shifted to start at 0).
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C.
+    dt : float
+        Sample interval, s.
+    phi_hat : float
+        Noise variance ratio σ1²/σ2² measured from the spectra.
+    knot_spacing_s : float, optional
+        Knot spacing of slowly varying quantities; default a tenth of the record.
+    tau_scale_s : float, optional
+        A rough time constant of the slower sensor; default 20 samples.
+    sigma2 : float
+        Noise standard deviation of thermocouple 2 at this sample rate, degrees C.
+    """
+    time = np.asarray(time, dtype=np.float64) - float(time[0])
+    both = np.concatenate((tc1, tc2))
+    duration = float(time[-1]) + dt
+    return FitContext(
+        dt=dt,
+        time=time,
+        level_mean_c=float(both.mean()),
+        level_std_c=float(both.std()),
+        knot_spacing_s=knot_spacing_s or duration / 10.0,
+        phi_hat=phi_hat,
+        tau_scale_s=tau_scale_s or 20.0 * dt,
+        sigma2=sigma2,
+    )
+
+
+def _effect(name: str) -> Effect:
+    from . import EFFECTS  # the registry imports this module
+
+    try:
+        return EFFECTS[name]()
+    except KeyError:
+        raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECTS)}") from None
+
+
+@dataclass(frozen=True)
+class Model:
+    """The first-order two-thermocouple model with zero or more effects.
+
+    Parameters
+    ----------
+    effects : sequence of str
+        Effect names (see :data:`tcomp_core.effects.EFFECT_NAMES`), in the order added.
+    params : mapping of str to float
+        Parameter values: ``tau1``, ``tau2`` (s) and the effects' own; empty before a fit.
+    """
+
+    effects: tuple[str, ...] = ()
+    params: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        names = tuple(self.effects)
+        if len(set(names)) != len(names):
+            raise ValueError(f"effects {names!r} repeat an effect")
+        object.__setattr__(self, "effects", names)
+        object.__setattr__(self, "_instances", tuple(_effect(name) for name in names))
+        object.__setattr__(self, "params", dict(self.params))
+
+    @property
+    def instances(self) -> tuple[Effect, ...]:
+        """The effect objects."""
+        return self._instances  # type: ignore[attr-defined]
+
+    def with_effect(self, name: str) -> Model:
+        """A new model with one more effect; the fitted parameters so far are kept."""
+        if name in self.effects:
+            raise ValueError(f"the model already has the effect {name!r}")
+        return Model((*self.effects, name), self.params)
+
+    @property
+    def tau1(self) -> float:
+        """Time constant of thermocouple 1, s."""
+        return self.params["tau1"]
+
+    @property
+    def tau2(self) -> float:
+        """Time constant of thermocouple 2, s."""
+        return self.params["tau2"]
+
+    @property
+    def phi(self) -> float:
+        """Noise variance ratio assumed by the fit."""
+        for effect in self.instances:
+            value = effect.noise_ratio(self.params)
+            if value is not None:
+                return value
+        return 1.0
+
+    def specs(self, context: FitContext) -> list[ParamSpec]:
+        """Every searched parameter: τ1, τ2 then each effect's."""
+        upper = max(context.duration_s, 100.0 * context.dt)
+        taus = [
+            ParamSpec(
+                name=f"tau{i}",
+                unit="s",
+                lower=context.dt / 50.0,
+                upper=upper,
+                description=f"time constant of tc{i}",
+            )
+            for i in (1, 2)
+        ]
+        return taus + [spec for effect in self.instances for spec in effect.specs(context)]
+
+    def n_params(self, context: FitContext) -> int:
+        """Number of parameters taken from the data (searched and fixed)."""
+        fixed = sum(len(effect.fixed(context)) for effect in self.instances)
+        return len(self.specs(context)) + fixed
+
+    # -- the two sensor chains ------------------------------------------------------------
+
+    def chains(self, context: FitContext, params: Mapping[str, float] | None = None):
+        """The resolved :class:`SensorChain` of sensors 1 and 2."""
+        params = self.params if params is None else params
+        chains = []
+        for sensor in (1, 2):
+            chain = SensorChain(tau=params[f"tau{sensor}"])
+            for effect in self.instances:
+                gain, offset = effect.calibration(sensor, params)
+                if (gain, offset) != (1.0, 0.0):
+                    chain = replace(chain, gain=gain, offset=offset)
+                conduction = effect.conduction(sensor, params)
+                if conduction is not None:
+                    chain = replace(chain, kappa=conduction[0], tau_p=conduction[1])
+                factor = effect.tau_factor(context, params)
+                if factor is not None:
+                    chain = replace(chain, factor=factor)
+                radiation = effect.radiation(sensor, params, context)
+                if radiation is not None:
+                    chain = replace(chain, r=radiation[0], wall_k=radiation[1])
+                if sensor == 2 and effect.delay_s(params):
+                    chain = replace(chain, delay_s=effect.delay_s(params))
+            chains.append(chain)
+        return chains[0], chains[1]
+
+    def reconstruct(
+        self, tc1: NDArray[np.float64], tc2: NDArray[np.float64], context: FitContext
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Gas temperature from each sensor on the common time base, shape (N - 1,) each."""
+        first, second = self.chains(context)
+        return (
+            gas_from_reading(first, tc1, context.dt)[0],
+            gas_from_reading(second, tc2, context.dt)[0],
+        )
+
+    def cross_residual(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        context: FitContext,
+        params: Mapping[str, float] | None = None,
+    ) -> NDArray[np.float64]:
+        """Normalised cross-relation residual (u1 − u2)/(σ2 sqrt(φ g1 + g2)), shape (N - 1,)."""
+        params = self.params if params is None else params
+        first, second = self.chains(context, params)
+        gas1, gain1 = gas_from_reading(first, tc1, context.dt)
+        gas2, gain2 = gas_from_reading(second, tc2, context.dt)
+        phi = Model(self.effects, params).phi
+        return (gas1 - gas2) / (context.sigma2 * np.sqrt(phi * gain1 + gain2))
+
+    def simulate(
+        self,
+        reading: NDArray[np.float64],
+        source: int,
+        initial_reading: float,
+        context: FitContext,
+    ) -> NDArray[np.float64]:
+        """Free-run simulation of the other sensor from sensor ``source``'s readings.
+
+        Parameters
+        ----------
+        reading : ndarray, shape (N,)
+            Readings of sensor ``source`` (1 or 2), degrees C.
+        source : int
+            The sensor whose readings drive the simulation.
+        initial_reading : float
+            The other sensor's reading at sample 0, degrees C.
+        context : FitContext
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            The other sensor's simulated readings, degrees C.
+        """
+        chains = self.chains(context)
+        gas, _ = gas_from_reading(chains[source - 1], reading, context.dt)
+        return reading_from_gas(chains[2 - source], gas, context.dt, initial_reading)
+
+    # -- fitting ----------------------------------------------------------------------------
+
+    def fit(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        context: FitContext,
+        rows: NDArray[np.bool_] | None = None,
+    ) -> Model:
+        """Fit every parameter by the cross-relation criterion; returns the fitted model.
+
+        Parameters without a value yet start from each effect's starting points (a short
+        search from each, then the best is polished); those with one start there.
+
+        Parameters
+        ----------
+        tc1, tc2 : ndarray, shape (N,)
+            Readings, degrees C.
+        context : FitContext
+        rows : ndarray of bool, shape (N - 1,), optional
+            Intervals the criterion uses (default all).
+
+        Raises
+        ------
+        EstimationError
+            If τ1 and τ2 have no values and no start can be made, or the search fails.
+        """
+        if "tau1" not in self.params or "tau2" not in self.params:
+            raise EstimationError("the model needs starting values of tau1 and tau2")
+        specs = self.specs(context)
+        rows = np.ones(tc1.size - 1, dtype=bool) if rows is None else rows
+        rows = rows & self._valid_rows(tc1.size, context)
+        n_rows = int(rows.sum())
+        if n_rows <= len(specs) + 2:
+            raise EstimationError(
+                f"{n_rows} usable samples are too few for {len(specs)} parameters"
+            )
+        fixed = {k: v for effect in self.instances for k, v in effect.fixed(context).items()}
+
+        def unpack(x: NDArray[np.float64]) -> dict[str, float]:
+            values = dict(fixed)
+            for spec, value in zip(specs, x, strict=True):
+                values[spec.name] = math.exp(value) if spec.name.startswith("tau") else value
+            return values
+
+        def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
+            values = unpack(x)
+            r = self.cross_residual(tc1, tc2, context, values)[rows]
+            r = np.where(np.isfinite(r), r, 1e6)
+            extra = [effect.penalty(values, n_rows) for effect in self.instances]
+            return np.concatenate([r, *extra]) if extra else r
+
+        lower = np.array(
+            [math.log(s.lower) if s.name.startswith("tau") else s.lower for s in specs]
+        )
+        upper = np.array(
+            [math.log(s.upper) if s.name.startswith("tau") else s.upper for s in specs]
+        )
+        starts = self._starts(context, specs, lower, upper, tc1, tc2)
+        if len(starts) > 1:
+            scouted = [
+                least_squares(residuals, x0, bounds=(lower, upper), max_nfev=_SCOUT_EVALUATIONS)
+                for x0 in starts
+            ]
+            x0 = min(scouted, key=lambda result: result.cost).x
+        else:
+            x0 = starts[0]
+        result = least_squares(residuals, x0, bounds=(lower, upper), x_scale="jac")
+        if not np.isfinite(result.cost):
+            raise EstimationError(f"the fit of {self.effects or 'the base model'} diverged")
+        return Model(self.effects, unpack(result.x))
+
+    def _valid_rows(self, n: int, context: FitContext) -> NDArray[np.bool_]:
+        """Intervals every parameter value can use (delays shift data off the ends)."""
+        valid = np.ones(n - 1, dtype=bool)
+        margin = 0
+        for effect in self.instances:
+            for spec in effect.specs(context):
+                if spec.name == "delay_s":
+                    margin = max(margin, math.ceil(max(-spec.lower, spec.upper) / context.dt) + 3)
+        if margin:
+            valid[:margin] = False
+            valid[-margin:] = False
+        return valid
+
+    def _starts(
+        self,
+        context: FitContext,
+        specs: Sequence[ParamSpec],
+        lower: NDArray[np.float64],
+        upper: NDArray[np.float64],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+    ) -> list[NDArray[np.float64]]:
+        """Start vectors: every combination of the new effects' starts."""
+        options = [
+            effect.starts(context, self.params, tc1, tc2)
+            for effect in self.instances
+            if any(spec.name not in self.params for spec in effect.specs(context))
+        ]
+        starts = []
+        for combination in itertools.product(*options) if options else [()]:
+            values = dict(self.params)
+            for part in combination:
+                values.update(part)
+            x = np.array(
+                [
+                    math.log(values[s.name]) if s.name.startswith("tau") else values[s.name]
+                    for s in specs
+                ]
+            )
+            starts.append(
+                np.clip(x, lower + 1e-9 * (upper - lower), upper - 1e-9 * (upper - lower))
+            )
+        return starts

@@ -1,0 +1,91 @@
+"""A changing flow velocity: both time constants vary in time with a constant ratio.
+
+Convective heat transfer grows with velocity, τi(t) = τi0 (v(t)/v0)^(−m), and the same v(t)
+reaches both sensors, so τ1(t)/τ2(t) stays constant. The factor s(t) = τi(t)/τi0 is fitted as
+exp of a cubic spline with knots every ``knot_spacing_s``, normalised to a geometric mean of 1 over
+the record (τi0 are then the record's geometric-mean time constants). A second-difference
+penalty keeps s(t) smooth across the held-out blocks between knots.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import BSpline
+
+from .base import Effect, FitContext, ParamSpec
+
+__all__ = ["Velocity"]
+
+_DEGREE = 3
+#: Weight of the smoothness penalty per unit second difference of log s, relative to the
+#: square root of the number of fitted rows.
+_SMOOTHNESS = 0.05
+
+
+def _basis(context: FitContext) -> NDArray[np.float64]:
+    start, stop = float(context.time[0]), float(context.time[-1])
+    n_intervals = max(1, round((stop - start) / context.knot_spacing_s))
+    inner = np.linspace(start, stop, n_intervals + 1)
+    knots = np.concatenate(([start] * _DEGREE, inner, [stop] * _DEGREE))
+    return BSpline.design_matrix(context.time, knots, _DEGREE).toarray()
+
+
+class Velocity(Effect):
+    """Spline coefficients ``velocity_1 .. velocity_n`` of log s(t) (``velocity_0`` = 0)."""
+
+    name = "velocity"
+    summary = "a changing flow velocity scales both time constants together (spline of log s(t))"
+
+    def __init__(self) -> None:
+        self._cache: tuple[int, float, NDArray[np.float64]] | None = None
+
+    def _design(self, context: FitContext) -> NDArray[np.float64]:
+        key = (context.time.size, context.knot_spacing_s)
+        if self._cache is None or self._cache[:2] != key:
+            self._cache = (*key, _basis(context))
+        return self._cache[2]
+
+    def n_coefficients(self, context: FitContext) -> int:
+        """Number of fitted spline coefficients (one fewer than basis functions)."""
+        return self._design(context).shape[1] - 1
+
+    def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
+        return tuple(
+            ParamSpec(
+                name=f"velocity_{j}",
+                unit="1",
+                lower=-1.5,
+                upper=1.5,
+                description=f"spline coefficient {j} of log tau factor",
+            )
+            for j in range(1, self.n_coefficients(context) + 1)
+        )
+
+    def starts(
+        self,
+        context: FitContext,
+        params: Mapping[str, float],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+    ) -> list[dict[str, float]]:
+        return [{spec.name: 0.0 for spec in self.specs(context)}]
+
+    def _coefficients(self, params: Mapping[str, float]) -> NDArray[np.float64]:
+        names = sorted(
+            (key for key in params if key.startswith("velocity_")),
+            key=lambda key: int(key.split("_")[1]),
+        )
+        return np.array([0.0, *(params[name] for name in names)])
+
+    def tau_factor(self, context: FitContext, params: Mapping[str, float]) -> NDArray[np.float64]:
+        log_s = self._design(context) @ self._coefficients(params)
+        return np.exp(log_s - log_s.mean())
+
+    def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
+        coefficients = self._coefficients(params)
+        if coefficients.size < 3:
+            return np.empty(0)
+        return _SMOOTHNESS * np.sqrt(n_rows) * np.diff(coefficients, 2)
