@@ -22,8 +22,9 @@ Phase 2 – the compensator under load
     each sample is scheduled, values are :func:`tcomp_core.simulate.simulate_pair` (10 Hz
     sinusoid, τ1 = 0.0238 s, τ2 = 0.1168 s, K = 1 %). The publisher sleeps ``--pub-period-ms``
     (1 ms) between batches and publishes every sample whose scheduled time has come, tc1 then
-    tc2, so it offers the full rate in ~5-sample batches; it reports the achieved rate and how
-    late its batches were. A *measurer* process subscribes ``gas_temperature`` and keeps, per
+    tc2, pre-serialized (:class:`tcomp_ros.temperature_cdr.Encoder`), so it offers the full rate
+    in ~5-sample batches; it reports the achieved rate and how late its batches were. A
+    *measurer* process subscribes ``gas_temperature`` and keeps, per
     message, its stamp and receive wall time; the latency is ``receive time − input stamp of the
     pair that produced it`` (= the gas stamp plus one sample period, since the node stamps each
     output with the predecessor pair). It also keeps the node's ``/diagnostics``; the last one,
@@ -33,11 +34,13 @@ CPU % is % of one core, from ``/proc/<pid>/stat`` (utime + stime, all threads) s
 orchestrator over the publishing window; "machine busy" is from ``/proc/stat``. The machine has
 2 cores shared by the publisher, the node and the measurer.
 
-The node outputs nothing until its first τ estimate is accepted (no initial τ): the pairs before
-the first output are counted separately, and the ≥ 99.9 % goal is judged on the pairs from the
-first output on ("steady state"); the ratio over all pairs sent is printed too.
+The node holds the pairs that arrive before its first accepted τ estimate (attempted every
+256 pairs) and publishes them once it has one, so every pair sent should come out; the ratio
+over all pairs sent is the goal, and the ratio from the first output on is printed too. The
+publisher sends pre-serialized messages and the measurer reads only the stamp of each raw
+message, so the harness takes as little CPU from the node as a DAQ bridge would.
 
-Goals: steady-state published/sent ≥ 99.9 %, latency p99 < 20 ms. The script exits 0 whatever
+Goals: published/sent ≥ 99.9 % of all pairs, latency p99 < 20 ms. The script exits 0 whatever
 the outcome and prints PASS/MISS per goal. All children are stopped at the end (SIGINT, then
 SIGTERM, then SIGKILL, with timeouts), also on errors and Ctrl-C.
 
@@ -61,6 +64,7 @@ import math
 import os
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
@@ -98,6 +102,7 @@ def child_publisher(args: argparse.Namespace) -> None:
     from sensor_msgs.msg import Temperature
 
     from tcomp_core.simulate import simulate_pair
+    from tcomp_ros.temperature_cdr import Encoder
 
     rate = float(round(args.rate))
     n = round(rate * args.duration)
@@ -126,12 +131,10 @@ def child_publisher(args: argparse.Namespace) -> None:
         time.sleep(0.02)
     time.sleep(0.5)  # let the subscriber side finish matching too
 
-    messages = [Temperature(), Temperature()]
-    for message in messages:
-        message.header.frame_id = "bench"
+    # Pre-serialized messages, as a DAQ bridge would publish them: the harness must not starve
+    # the node under test of CPU on these 2-core machines.
+    encode = Encoder("bench").encode
     publish1, publish2 = pubs[0].publish, pubs[1].publish
-    m1, m2 = messages
-    stamp1, stamp2 = m1.header.stamp, m2.header.stamp
     giga = 1_000_000_000
     rate_int = round(rate)  # stamp of sample j: t0 + j * 1e9 // rate_int
     tick_s = args.pub_period_ms * 1e-3
@@ -149,15 +152,9 @@ def child_publisher(args: argparse.Namespace) -> None:
             batch_lag_ns.append(now - (t0 + (k * giga) // rate_int))
             batch_sizes.append(due - k)
             for j in range(k, due):
-                sec, nsec = divmod(t0 + (j * giga) // rate_int, giga)
-                stamp1.sec = sec
-                stamp1.nanosec = nsec
-                m1.temperature = tc1[j]
-                publish1(m1)
-                stamp2.sec = sec
-                stamp2.nanosec = nsec
-                m2.temperature = tc2[j]
-                publish2(m2)
+                stamp = t0 + (j * giga) // rate_int
+                publish1(encode(stamp, tc1[j]))
+                publish2(encode(stamp, tc2[j]))
             k = due
         next_tick += tick_s
         pause = next_tick - time.monotonic()
@@ -261,10 +258,12 @@ def child_measurer(args: argparse.Namespace) -> None:
     received: list[int] = []
     add_stamp, add_received, now_ns = stamps.append, received.append, time.time_ns
 
-    def on_gas(message) -> None:
+    unpack_stamp = struct.Struct("<iI").unpack_from
+
+    def on_gas(data: bytes) -> None:  # raw: only the stamp is needed
         add_received(now_ns())
-        stamp = message.header.stamp
-        add_stamp(stamp.sec * 1_000_000_000 + stamp.nanosec)
+        sec, nanosec = unpack_stamp(data, 4)  # after the 4-byte CDR encapsulation header
+        add_stamp(sec * 1_000_000_000 + nanosec)
 
     diagnostics: list[dict] = []
 
@@ -278,7 +277,7 @@ def child_measurer(args: argparse.Namespace) -> None:
             diagnostics.append(entry)
 
     gas_sub = node.create_subscription(
-        Temperature, "gas_temperature", on_gas, _input_qos(depth=10000)
+        Temperature, "gas_temperature", on_gas, _input_qos(depth=10000), raw=True
     )
     diag_sub = node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 100)
 
@@ -690,13 +689,13 @@ def print_table(args, baselines: list[dict], comp: dict, stats: dict) -> None:
         "ratio, all pairs sent",
         f"{stats['ratio_all_pct']:.3f} % (first output at pair {stats['first_index']}, "
         f"{stats['first_output_s']:.2f} s)",
-        f">= {GOAL_RATIO_PCT} % {verdict(stats['ratio_all_pct'] >= GOAL_RATIO_PCT)} (info)",
+        f">= {GOAL_RATIO_PCT} % {verdict(stats['ratio_all_pct'] >= GOAL_RATIO_PCT)}",
     )
     row(
         "ratio, pairs from the first output on",
         f"{stats['ratio_steady_pct']:.3f} % ({stats['missing_steady']} of "
         f"{stats['expected_steady']} missing, {stats['duplicates']} duplicates)",
-        f">= {GOAL_RATIO_PCT} % {verdict(stats['ratio_steady_pct'] >= GOAL_RATIO_PCT)}",
+        "(info)",
     )
     row(
         "latency p50 / p99 / max ms",
@@ -744,8 +743,8 @@ def print_table(args, baselines: list[dict], comp: dict, stats: dict) -> None:
             print(f"{name:<{width}}  {value:<{vwidth}}  {goal}")
     print(line)
     print(
-        f"GOAL ratio >= {GOAL_RATIO_PCT} % (from the first output on): "
-        f"{verdict(stats['ratio_steady_pct'] >= GOAL_RATIO_PCT)}"
+        f"GOAL ratio >= {GOAL_RATIO_PCT} % (of all pairs sent): "
+        f"{verdict(stats['ratio_all_pct'] >= GOAL_RATIO_PCT)}"
     )
     print(f"GOAL latency p99 < {GOAL_P99_MS} ms: {verdict(lat['p99'] < GOAL_P99_MS)}")
 

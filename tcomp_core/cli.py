@@ -1,4 +1,4 @@
-"""The ``tcomp`` command line: simulate, estimate, reconstruct, sweep, study.
+"""The ``tcomp`` command line: simulate, estimate, reconstruct, sweep, study, diagnose, fit.
 
 DATA arguments are a CSV file (``time,tc1,tc2[,ref]``) or a rosbag2 MCAP bag (directory or
 ``.mcap`` file) with ``sensor_msgs/msg/Temperature`` on ``/tc1/temperature``,
@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .cli_diagnose import add_diagnose_commands
 from .errors import TcompError
 from .estimators import METHODS, Estimate, estimate
 from .io import DEFAULT_TOPICS, Record, read_record, write_series
@@ -181,10 +182,13 @@ def build_parser() -> argparse.ArgumentParser:
     sty.add_argument("--png", type=Path, default=Path("out/study.png"), help="figure path")
     sty.add_argument("--json", type=Path, help="also write the table as JSON to this file")
     sty.set_defaults(handler=_cmd_study)
+
+    add_diagnose_commands(verbs, _add_data_arguments)
     return parser
 
 
-def _read(args: argparse.Namespace) -> Record:
+def read_data(args: argparse.Namespace) -> Record:
+    """Read the DATA argument with the ``--topics`` / ``--columns`` options."""
     topics = columns = None
     if args.topics:
         if len(args.topics) not in (2, 3):
@@ -245,7 +249,7 @@ def _estimate_row(result: Estimate) -> str:
 
 
 def _cmd_estimate(args: argparse.Namespace) -> int:
-    record = _read(args)
+    record = read_data(args)
     methods = METHODS if args.method == "all" else (args.method,)
     results: list[Estimate] = []
     failures: dict[str, str] = {}
@@ -279,7 +283,7 @@ def _cmd_estimate(args: argparse.Namespace) -> int:
 
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
-    record = _read(args)
+    record = read_data(args)
     if (args.tau1 is None) != (args.tau2 is None):
         raise TcompError("give both --tau1 and --tau2, or neither to estimate them")
     if args.tau1 is None:
@@ -332,7 +336,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from .sweep import prefilter_sweep
 
-    record = _read(args)
+    record = read_data(args)
     result = prefilter_sweep(
         record.tc1,
         record.tc2,

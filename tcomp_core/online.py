@@ -50,6 +50,10 @@ RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
 MIN_PREFILTER_SAMPLES = 64
 #: Stamps used to learn the sample period when none is configured.
 PERIOD_LEARNING_SAMPLES = 64
+#: Before the first accepted estimate, one is attempted as soon as the window holds this many
+#: rows and again after every further batch of as many: output starts early and the pairs
+#: that came before it are reconstructed from the backlog instead of being lost.
+FIRST_ESTIMATE_ROWS = 256
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -174,6 +178,10 @@ class OnlineCompensator:
         self._sos: NDArray[np.float64] | None = None
         self.last_status: EstimateStatus | None = None
         self.counters = {"pairs": 0, "gaps": 0, "reconstructed": 0, "unreconstructed": 0}
+        # Pairs that arrived before the first τ: (stamps, tc1, tc2, steps_s, contiguous).
+        self._backlog: list[tuple[NDArray, ...]] = []
+        self._backlog_rows = 0
+        self._next_first_attempt = FIRST_ESTIMATE_ROWS
 
     @property
     def config(self) -> OnlineConfig:
@@ -292,7 +300,38 @@ class OnlineCompensator:
         else:  # the very first sample has no predecessor to link to
             self._window.extend(tc1, tc2, np.concatenate(([True], contiguous)))
         self._previous = (int(stamps[-1]), float(tc1[-1]), float(tc2[-1]))
+        if self._tau is None and self._window.rows >= self._next_first_attempt:
+            self._next_first_attempt = self._window.rows + FIRST_ESTIMATE_ROWS
+            self.update_estimate()
+        if self._tau is None:
+            self._hold(stamps, tc1, tc2, steps_s, contiguous)
+            return np.empty(0, dtype=np.int64), np.empty(0)
+        if self._backlog:
+            return self._reconstruct_backlog_and(stamps, tc1, tc2, steps_s, contiguous)
         return self._reconstruct(stamps, tc1, tc2, steps_s, contiguous)
+
+    def _hold(self, *chunk: NDArray) -> None:
+        """Keep pairs until the first τ, at most one window's worth (the oldest go first)."""
+        if chunk[3].size == 0:
+            return
+        self._backlog.append(chunk)
+        self._backlog_rows += chunk[3].size
+        capacity = self._window.capacity if self._window is not None else 0
+        while self._backlog_rows > capacity and len(self._backlog) > 1:
+            dropped = self._backlog.pop(0)
+            self._backlog_rows -= dropped[3].size
+            self.counters["unreconstructed"] += int(dropped[3].size)
+
+    def _reconstruct_backlog_and(
+        self, *current: NDArray
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Reconstruct the held pairs and the current ones with the first τ, in stamp order."""
+        outputs = [self._reconstruct(*chunk) for chunk in (*self._backlog, current)]
+        self._backlog, self._backlog_rows = [], 0
+        return (
+            np.concatenate([stamps for stamps, _ in outputs]),
+            np.concatenate([gas for _, gas in outputs]),
+        )
 
     def _reconstruct(
         self,
@@ -304,9 +343,7 @@ class OnlineCompensator:
     ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         if steps_s.size == 0:
             return np.empty(0, dtype=np.int64), np.empty(0)
-        if self._tau is None:
-            self.counters["unreconstructed"] += int(steps_s.size)
-            return np.empty(0, dtype=np.int64), np.empty(0)
+        assert self._tau is not None  # pairs are held until the first τ
         tau1, tau2 = self._tau
         a1 = np.exp(-steps_s / tau1)
         a2 = np.exp(-steps_s / tau2)

@@ -16,6 +16,7 @@ from rclpy._rclpy_pybind11 import RCLError
 from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.task import Future
 
 __all__ = ["make_executor", "spin_until_shutdown"]
 
@@ -37,9 +38,16 @@ def spin_until_shutdown(
     executor = make_executor(context)
     executor.add_node(node)
     try:
+        # The EventsExecutor dispatches events in C++ until the (never done) future's timeout:
+        # one Python call per slice instead of one per message, ~10 µs saved per message.
+        slice_spin = getattr(executor, "spin_until_future_complete", None)
+        never = Future()
         while context.ok() and not done():
             try:
-                executor.spin_once(timeout_sec=timeout_sec)
+                if slice_spin is not None and not isinstance(executor, SingleThreadedExecutor):
+                    slice_spin(never, timeout_sec=timeout_sec)
+                else:
+                    executor.spin_once(timeout_sec=timeout_sec)
             except RCLError:
                 # A signal can shut the context down while a callback publishes; that error is
                 # the shutdown itself, anything else is not.

@@ -7,6 +7,7 @@ import pytest
 
 from tcomp_core.effects import EFFECT_NAMES, Model, make_context
 from tcomp_core.effects.chain import (
+    SHIFT_HALF_TAPS,
     SensorChain,
     fractional_shift,
     gas_from_reading,
@@ -47,9 +48,9 @@ def test_forward_then_inverse_returns_the_gas(name):
     reading = reading_from_gas(chain, gas, DT, initial_reading=float(gas[0]) * chain.gain)
     recovered, noise_gain = gas_from_reading(chain, reading, DT)
     inside = np.isfinite(recovered)
-    inside[:20] = inside[-20:] = False  # delay edges and the initial state
+    inside[:40] = inside[-40:] = False  # delay edges and the initial state
     assert inside.sum() > 4900
-    tolerance = 1e-3 if chain.delay_s else 1e-6
+    tolerance = 1e-4 if chain.delay_s else 1e-6
     np.testing.assert_allclose(recovered[inside], gas[inside], atol=tolerance * 700)
     assert np.all(noise_gain > 1.0)
 
@@ -59,8 +60,15 @@ def test_fractional_shift_interpolates_a_smooth_signal_exactly_enough():
     shifted, weights = fractional_shift(values, 2.3)
     expected = np.sin(2 * np.pi * 5.0 * (TIME + 2.3 * DT))
     inside = np.isfinite(shifted)
-    assert np.isnan(shifted[-3:]).all() and inside[:-4].all()
-    np.testing.assert_allclose(shifted[inside], expected[inside], atol=1e-6)
+    reach = SHIFT_HALF_TAPS + 2  # the stencil's reach past sample k + 2
+    assert np.isnan(shifted[-reach:]).all() and inside[SHIFT_HALF_TAPS : -reach - 1].all()
+    np.testing.assert_allclose(shifted[inside], expected[inside], atol=1e-4)
+    # Band-limited: a tone at 0.3 of the sample rate still shifts to 1e-3.
+    fast = np.sin(2 * np.pi * 0.3 / DT * TIME)
+    shifted, _ = fractional_shift(fast, 0.5)
+    expected = np.sin(2 * np.pi * 0.3 / DT * (TIME + 0.5 * DT))
+    inside = np.isfinite(shifted)
+    np.testing.assert_allclose(shifted[inside], expected[inside], atol=1e-3)
     assert weights.sum() == pytest.approx(1.0)
 
 

@@ -13,7 +13,7 @@ effects wrap it (see :mod:`tcomp_core.effects.base`):
 * velocity: τ_k = τ s(t_k);
 * radiation: the lag is driven by u − r (T⁴ − T_w⁴), the loss taken at T[k] so that the forward
   recurrence stays explicit and is the exact inverse of the backward one;
-* delay: the sensor sees u(t − δ); a cubic Lagrange interpolator shifts its readings by
+* delay: the sensor sees u(t − δ); a windowed-sinc interpolator shifts its readings by
   fractions of a sample (equivalent by time invariance, and the readings are smoother).
 
 The inverse and the forward direction are exact inverses of each other in discrete time (up to
@@ -87,8 +87,32 @@ def _steady_filter(b, a, values: NDArray[np.float64]) -> NDArray[np.float64]:
     return signal.lfilter(b, a, values, zi=zi)[0]
 
 
+#: Half length of the fractional-delay interpolator (taps: 2 × this).
+SHIFT_HALF_TAPS = 16
+#: Kaiser window shape of that interpolator: error below ~1e-4 up to 0.35 × the sample rate.
+_SHIFT_KAISER_BETA = 8.0
+
+
+def shift_weights(fraction: float) -> NDArray[np.float64]:
+    """Kaiser-windowed sinc weights reading a series ``fraction`` (0 ≤ f < 1) of a sample later.
+
+    The weights apply to the samples at offsets ``-SHIFT_HALF_TAPS + 1 .. SHIFT_HALF_TAPS``
+    and sum to 1, so a constant passes unchanged.
+    """
+    if fraction < 1e-12:
+        weights = np.zeros(2 * SHIFT_HALF_TAPS)
+        weights[SHIFT_HALF_TAPS - 1] = 1.0
+        return weights
+    offsets = np.arange(-SHIFT_HALF_TAPS + 1, SHIFT_HALF_TAPS + 1) - fraction
+    # The Kaiser window evaluated at the fractional offsets.
+    position = offsets / (SHIFT_HALF_TAPS + 0.5)
+    taper = np.i0(_SHIFT_KAISER_BETA * np.sqrt(np.clip(1.0 - position**2, 0.0, 1.0)))
+    weights = np.sinc(offsets) * taper / np.i0(_SHIFT_KAISER_BETA)
+    return weights / weights.sum()
+
+
 def fractional_shift(values: NDArray[np.float64], shift: float) -> tuple[NDArray, NDArray]:
-    """Evaluate a sampled series at index ``k + shift`` by cubic Lagrange interpolation.
+    """Evaluate a sampled series at index ``k + shift`` (band-limited interpolation).
 
     Parameters
     ----------
@@ -99,31 +123,21 @@ def fractional_shift(values: NDArray[np.float64], shift: float) -> tuple[NDArray
     Returns
     -------
     shifted : ndarray, shape (M,)
-        NaN where the 4-point stencil leaves the record.
-    weights : ndarray, shape (4,)
+        NaN where the interpolator's stencil leaves the record.
+    weights : ndarray, shape (2 * SHIFT_HALF_TAPS,)
         The interpolation weights.
     """
     whole = math.floor(shift)
-    f = shift - whole
-    if f < 1e-12:
-        weights = np.array([0.0, 1.0, 0.0, 0.0])
-    else:
-        weights = np.array(
-            [
-                -f * (f - 1.0) * (f - 2.0) / 6.0,
-                (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0,
-                -(f + 1.0) * f * (f - 2.0) / 2.0,
-                (f + 1.0) * f * (f - 1.0) / 6.0,
-            ]
-        )
+    weights = shift_weights(shift - whole)
     m = values.size
     shifted = np.full(m, np.nan)
-    # Output k uses values[k + whole - 1 .. k + whole + 2].
-    lo = max(0, 1 - whole)
-    hi = min(m, m - whole - 2)
+    # Output k uses values[k + whole + j] for j = -SHIFT_HALF_TAPS + 1 .. SHIFT_HALF_TAPS.
+    first_offset = whole - SHIFT_HALF_TAPS + 1
+    lo = max(0, -first_offset)
+    hi = min(m, m - (whole + SHIFT_HALF_TAPS))
     if hi > lo:
         k = np.arange(lo, hi)
-        shifted[lo:hi] = sum(w * values[k + whole - 1 + j] for j, w in enumerate(weights))
+        shifted[lo:hi] = sum(w * values[k + first_offset + j] for j, w in enumerate(weights))
     return shifted, weights
 
 

@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 
 from ..errors import EstimationError
 from .base import Effect, FitContext, ParamSpec
-from .chain import SensorChain, gas_from_reading, reading_from_gas
+from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
 
 __all__ = ["Model", "make_context"]
 
@@ -319,7 +319,8 @@ class Model:
         for effect in self.instances:
             for spec in effect.specs(context):
                 if spec.name == "delay_s":
-                    margin = max(margin, math.ceil(max(-spec.lower, spec.upper) / context.dt) + 3)
+                    bound = max(-spec.lower, spec.upper)
+                    margin = max(margin, math.ceil(bound / context.dt) + SHIFT_HALF_TAPS + 1)
         if margin:
             valid[:margin] = False
             valid[-margin:] = False

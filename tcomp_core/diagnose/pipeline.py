@@ -1,0 +1,278 @@
+"""``diagnose``: fit the base model, find where it fails, add the missing effects one by one.
+
+1. Prepare the record (working rate, noise, held-out blocks: :mod:`.prepare`).
+2. Fit the base model of the paper, β-GTLS with φ = 1, on the estimation blocks, and score its
+   free-run simulation of the slow sensor on the held-out blocks (:mod:`.heldout`).
+3. Analyse its residuals: where in time, frequency and level it fails (:mod:`.residuals`).
+4. Refit the model with each candidate effect in turn and rank them by held-out error
+   (:mod:`.ranking`); keep the best while it lowers the held-out error significantly, then
+   look for a further effect on top of it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..effects import EFFECT_NAMES, Model, make_context
+from ..errors import EstimationError, TcompError
+from ..estimators.beta import estimate_beta_from_scatter
+from ..estimators.scatter import beta_scatter
+from ..io import Record
+from .heldout import Evaluator, heldout_error_percent
+from .prepare import PreparedData, block_length_s, prepare
+from .ranking import MAX_EFFECTS, next_round, pick
+from .residuals import analyse_failure
+from .result import Diagnosis, ModelFit, Suspect
+
+__all__ = ["diagnose", "fit_effects"]
+
+#: The comparison low-pass sits this far above the slow sensor's band edge.
+CUTOFF_PER_BAND_EDGE = 1.5
+
+
+def _check_effects(names: Sequence[str]) -> tuple[str, ...]:
+    names = tuple(names)
+    for name in names:
+        if name not in EFFECT_NAMES:
+            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"effects {', '.join(names)} repeat an effect")
+    return names
+
+
+def _initial_taus(data: PreparedData) -> dict[str, float]:
+    """β-GTLS (φ = 1) on the pooled estimation blocks; a coarse grid if it fails."""
+    blocks = data.blocks(held_out=False)
+    scatter = sum(beta_scatter(data.tc1[b], data.tc2[b]) for b in blocks)
+    n = sum(b.stop - b.start for b in blocks)
+    try:
+        found = estimate_beta_from_scatter(scatter, data.dt, n, "beta-gtls", 1.0)
+        return {"tau1": found.tau1, "tau2": found.tau2}
+    except TcompError:
+        pass
+    context = make_context(data.time, data.tc1, data.tc2, data.dt)
+    grid = np.geomspace(2.0 * data.dt, data.time[-1] / 5.0, 16)
+    rows = data.training_rows
+
+    def cost(tau1: float, tau2: float) -> float:
+        model = Model(params={"tau1": tau1, "tau2": tau2})
+        return float(np.sum(model.cross_residual(data.tc1, data.tc2, context)[rows] ** 2))
+
+    tau1, tau2 = min(itertools.product(grid, grid), key=lambda pair: cost(*pair))
+    return {"tau1": float(tau1), "tau2": float(tau2)}
+
+
+def _evaluator(data: PreparedData, taus: dict[str, float]) -> Evaluator:
+    slow = 2 if taus["tau2"] >= taus["tau1"] else 1
+    context = make_context(
+        data.time,
+        data.tc1,
+        data.tc2,
+        data.dt,
+        phi_hat=data.phi_hat,
+        knot_spacing_s=block_length_s(data.time[-1] + data.dt, data.dt),
+        tau_scale_s=max(taus.values()),
+        sigma2=max(data.noise2.sigma / np.sqrt(data.decimation), 1e-9 * (1.0 + np.std(data.tc2))),
+    )
+    nyquist = 0.5 / data.dt
+    duration = data.time[-1] + data.dt
+    cutoff = CUTOFF_PER_BAND_EDGE * data.band_edge_hz[slow - 1]
+    cutoff = float(min(max(cutoff, 10.0 / duration), 0.8 * nyquist))
+    return Evaluator(data=data, context=context, slow=slow, cutoff_hz=cutoff)
+
+
+def _fit_base(evaluator: Evaluator, taus: dict[str, float]) -> tuple[Model, ModelFit]:
+    model = evaluator.fit(Model(params=taus))
+    return model, evaluator.evaluate(model)
+
+
+def _failure(evaluator: Evaluator, fit: ModelFit):
+    data = evaluator.data
+    measured = (data.tc1, data.tc2)[evaluator.slow - 1]
+    keep = evaluator.scored_mask(Model(fit.effects, fit.params))
+    return analyse_failure(
+        data.time,
+        data.tc1,
+        data.tc2,
+        evaluator.lowpass(fit.predicted),
+        evaluator.lowpass(measured),
+        measured - fit.predicted,
+        dt=data.dt,
+        slow=evaluator.slow,
+        mask=data.validation & keep,
+    )
+
+
+def _reference_errors(evaluator: Evaluator, fit: ModelFit) -> dict[str, float]:
+    data = evaluator.data
+    if data.ref is None:
+        return {}
+    sigma2 = (data.noise1.sigma**2, data.noise2.sigma**2)
+    taus = (fit.tau1, fit.tau2)
+    # Inverse-variance fusion: a reconstruction's noise grows with τ/dt.
+    weights = [1.0 / (s * (t / data.dt) ** 2) for s, t in zip(sigma2, taus, strict=True)]
+    fused = (weights[0] * fit.gas1 + weights[1] * fit.gas2) / sum(weights)
+    keep = evaluator.scored_mask(Model(fit.effects, fit.params))
+    reference = evaluator.lowpass(data.ref)
+    return {
+        name: heldout_error_percent(reference, evaluator.lowpass(gas), keep)
+        for name, gas in (("gas1", fit.gas1), ("gas2", fit.gas2), ("fused", fused))
+    }
+
+
+def _notes(data: PreparedData, evaluator: Evaluator) -> list[str]:
+    notes = []
+    if data.decimation > 1:
+        notes.append(
+            f"decimated by {data.decimation} to {1 / data.dt:.6g} Hz: the signals carry nothing "
+            f"above {max(data.band_edge_hz):.3g} Hz"
+        )
+    notes.append(
+        f"noise from the spectra: sigma1 = {data.noise1.sigma:.3g} degC, sigma2 = "
+        f"{data.noise2.sigma:.3g} degC (phi = {data.phi_hat:.3g})"
+    )
+    measured = (data.tc1, data.tc2)[evaluator.slow - 1]
+    spectrum = np.abs(np.fft.rfft(measured - measured.mean())) ** 2
+    share = np.sort(spectrum)[::-1][:5].sum() / spectrum.sum()
+    if share > 0.95:
+        notes.append(
+            f"the excitation is nearly a single tone ({100 * share:.0f} % of the power in 5 "
+            "frequency bins): two time constants already match one tone exactly, so linear "
+            "effects (delay, conduction) are hard to tell apart from a change of tau"
+        )
+    return notes
+
+
+def _staircase(
+    evaluator: Evaluator,
+    model: Model,
+    fit: ModelFit,
+    candidates: Sequence[str],
+    max_effects: int,
+) -> tuple[list[ModelFit], list[list[Suspect]]]:
+    steps, rounds = [fit], []
+    remaining = [name for name in candidates if name not in model.effects]
+    while remaining and len(steps) <= max_effects:
+        suspects = next_round(evaluator, model, fit, remaining)
+        rounds.append(suspects)
+        chosen = pick(suspects)
+        if chosen is None:
+            break
+        fit = chosen.fit
+        model = Model(fit.effects, fit.params)
+        steps.append(fit)
+        remaining.remove(chosen.effect)
+    return steps, rounds
+
+
+def _diagnosis(evaluator, base, failure, steps, rounds, verdict) -> Diagnosis:
+    data = evaluator.data
+    return Diagnosis(
+        source=data.source,
+        time=data.time,
+        tc1=data.tc1,
+        tc2=data.tc2,
+        ref=data.ref,
+        dt=data.dt,
+        slow=evaluator.slow,
+        validation=data.validation,
+        eval_cutoff_hz=evaluator.cutoff_hz,
+        sigma1=data.noise1.sigma,
+        sigma2=data.noise2.sigma,
+        phi=data.phi_hat,
+        base=base,
+        failure=failure,
+        suspects=rounds[0] if rounds else [],
+        steps=steps,
+        rounds=rounds,
+        verdict=verdict,
+        final=steps[-1],
+        ref_error_pct=_reference_errors(evaluator, steps[-1]),
+        notes=_notes(data, evaluator),
+    )
+
+
+def diagnose(
+    record: Record,
+    *,
+    candidates: Sequence[str] = EFFECT_NAMES,
+    max_effects: int = MAX_EFFECTS,
+) -> Diagnosis:
+    """Compare the first-order model with a record, find where it fails and what is missing.
+
+    Parameters
+    ----------
+    record : Record
+        Two thermocouples (and optionally a reference), e.g. from
+        :func:`tcomp_core.io.read_record`.
+    candidates : sequence of str
+        Effects to consider (default all of :data:`~tcomp_core.effects.EFFECT_NAMES`).
+    max_effects : int
+        Most effects added on top of the base model.
+
+    Returns
+    -------
+    Diagnosis
+
+    Raises
+    ------
+    DataError
+        If the record is too short.
+    EstimationError
+        If not even the base model can be fitted.
+    """
+    candidates = _check_effects(candidates)
+    data = prepare(record)
+    taus = _initial_taus(data)
+    evaluator = _evaluator(data, taus)
+    model, base = _fit_base(evaluator, taus)
+    failure = _failure(evaluator, base)
+    steps, rounds = _staircase(evaluator, model, base, candidates, max_effects)
+    verdict = steps[1].effects[0] if len(steps) > 1 else "none"
+    return _diagnosis(evaluator, base, failure, steps, rounds, verdict)
+
+
+def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
+    """Fit the base model plus a chosen set of effects, added in the order given.
+
+    Every step is scored like :func:`diagnose` scores it; ``steps`` holds the base model and
+    one fit per effect added, ``suspects`` the same fits as suspects, and ``verdict`` the
+    last effect (``"none"`` for an empty set).
+
+    Raises
+    ------
+    EstimationError
+        If a fit fails.
+    """
+    effects = _check_effects(effects)
+    data = prepare(record)
+    taus = _initial_taus(data)
+    evaluator = _evaluator(data, taus)
+    model, base = _fit_base(evaluator, taus)
+    failure = _failure(evaluator, base)
+    steps, suspects = [base], []
+    for name in effects:
+        try:
+            model = evaluator.fit(model.with_effect(name))
+        except (EstimationError, ValueError) as exc:
+            raise EstimationError(f"fitting the effect {name!r} failed: {exc}") from exc
+        fit = evaluator.evaluate(model)
+        previous = steps[-1].error_pct
+        evidence = 1.0 - fit.error_pct / previous if math.isfinite(previous) else 0.0
+        suspects.append(
+            Suspect(
+                effect=name,
+                error_pct=fit.error_pct,
+                evidence=evidence,
+                signature="chosen by the user",
+                significant=True,
+                fit=fit,
+            )
+        )
+        steps.append(fit)
+    verdict = effects[-1] if effects else "none"
+    return _diagnosis(evaluator, base, failure, steps, [suspects] if suspects else [], verdict)

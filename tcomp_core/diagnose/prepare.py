@@ -1,0 +1,178 @@
+"""Data for the diagnosis: working rate, noise levels, held-out blocks.
+
+Records sampled far faster than the thermocouples respond (a 5 kHz rig for a 10 Hz signal) are
+decimated first: the difference equation then sees a usable change per sample, and the
+anti-alias filter leaves white noise white. The noise of each sensor is measured on the raw
+record (:mod:`tcomp_core.noise`). The record is cut into equal blocks; even blocks estimate,
+odd blocks validate, so slowly varying effects are seen on both sides of every held-out block.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from ..errors import DataError
+from ..io import Record
+from ..noise import NoiseEstimate, estimate_noise, signal_band_edge
+
+__all__ = ["PreparedData", "block_length_s", "prepare"]
+
+#: The working rate is at least this many samples per second ...
+MIN_WORKING_RATE_HZ = 500.0
+#: ... and at least this many times the highest frequency the signals carry.
+RATE_PER_BANDWIDTH = 20.0
+#: Blocks per record (before the limits of :func:`block_length_s`).
+TARGET_BLOCKS = 20
+#: Fewest samples of a usable record at the working rate.
+MIN_WORKING_SAMPLES = 400
+
+
+@dataclass(frozen=True, kw_only=True)
+class PreparedData:
+    """A record ready for fitting and validation.
+
+    Attributes
+    ----------
+    source : str
+        Where the data came from.
+    time : ndarray, shape (N,)
+        Times at the working rate, s from 0.
+    tc1, tc2 : ndarray, shape (N,)
+        Readings at the working rate, degrees C.
+    ref : ndarray, shape (N,) or None
+        Reference at the working rate, degrees C.
+    dt : float
+        Working sample interval, s.
+    decimation : int
+        Raw samples per working sample.
+    noise1, noise2 : NoiseEstimate
+        Noise of each sensor on the raw record.
+    band_edge_hz : tuple of float
+        Highest frequency each sensor carries above its noise, Hz (raw record).
+    validation : ndarray of bool, shape (N,)
+        True on held-out samples.
+    block_starts : ndarray of int, shape (B + 1,)
+        Sample index where each block starts, then N.
+    """
+
+    source: str
+    time: NDArray[np.float64]
+    tc1: NDArray[np.float64]
+    tc2: NDArray[np.float64]
+    ref: NDArray[np.float64] | None
+    dt: float
+    decimation: int
+    noise1: NoiseEstimate
+    noise2: NoiseEstimate
+    band_edge_hz: tuple[float, float]
+    validation: NDArray[np.bool_]
+    block_starts: NDArray[np.intp]
+
+    @property
+    def phi_hat(self) -> float:
+        """Noise variance ratio σ1²/σ2² from the spectra."""
+        return float(np.clip((self.noise1.sigma / self.noise2.sigma) ** 2, 1e-3, 1e3))
+
+    @property
+    def training_rows(self) -> NDArray[np.bool_]:
+        """Intervals (k, k+1) whose both ends are estimation samples, shape (N - 1,)."""
+        estimation = ~self.validation
+        return estimation[:-1] & estimation[1:]
+
+    def blocks(self, held_out: bool) -> list[slice]:
+        """The validation (``held_out``) or estimation blocks as slices."""
+        starts = self.block_starts
+        return [
+            slice(int(starts[b]), int(starts[b + 1]))
+            for b in range(starts.size - 1)
+            if bool(b % 2) == held_out
+        ]
+
+
+def block_length_s(duration_s: float, dt: float) -> float:
+    """Length of the held-out blocks: a twentieth of the record, within 0.25–2 s, ≥ 50 samples."""
+    length = min(max(duration_s / TARGET_BLOCKS, 0.25), 2.0)
+    length = max(length, 50.0 * dt)
+    return min(length, duration_s / 4.0)
+
+
+def _decimate(values: NDArray[np.float64], factor: int) -> NDArray[np.float64]:
+    """Zero-phase FIR decimation, in stages of at most 10."""
+    while factor > 1:
+        step = next(s for s in range(min(factor, 10), 1, -1) if factor % s == 0)
+        values = signal.decimate(values, step, ftype="fir", zero_phase=True)
+        factor //= step
+    return values
+
+
+def _decimation_factor(dt: float, band_edge_hz: float) -> int:
+    rate = max(MIN_WORKING_RATE_HZ, RATE_PER_BANDWIDTH * band_edge_hz)
+    factor = max(1, math.floor(1.0 / (dt * rate)))
+    # Prefer factors with small prime factors so the stages stay short.
+    while factor > 1 and any(p > 10 for p in _prime_factors(factor)):
+        factor -= 1
+    return factor
+
+
+def _prime_factors(n: int) -> list[int]:
+    factors, p = [], 2
+    while p * p <= n:
+        while n % p == 0:
+            factors.append(p)
+            n //= p
+        p += 1
+    return [*factors, n] if n > 1 else factors
+
+
+def prepare(record: Record) -> PreparedData:
+    """Decimate, measure the noise and cut the held-out blocks of a record.
+
+    Raises
+    ------
+    DataError
+        If the record is too short to hold estimation and validation blocks.
+    """
+    noise1, noise2 = estimate_noise(record.tc1, record.dt), estimate_noise(record.tc2, record.dt)
+    edges = (
+        signal_band_edge(record.tc1, record.dt, noise1.floor),
+        signal_band_edge(record.tc2, record.dt, noise2.floor),
+    )
+    factor = _decimation_factor(record.dt, max(edges))
+    arrays = [record.tc1, record.tc2] + ([record.ref] if record.ref is not None else [])
+    if factor > 1:
+        arrays = [_decimate(values, factor) for values in arrays]
+    dt = record.dt * factor
+    n = arrays[0].size
+    if n < MIN_WORKING_SAMPLES:
+        raise DataError(
+            f"{record.source}: {n} samples at {1 / dt:.6g} Hz are too few to diagnose; "
+            f"need at least {MIN_WORKING_SAMPLES}"
+        )
+    time = np.arange(n) * dt
+    length = block_length_s(n * dt, dt)
+    starts = np.arange(0, n, max(1, round(length / dt)))
+    if n - starts[-1] < 0.5 * length / dt:
+        starts = starts[:-1]  # merge a short tail into the last block
+    starts = np.append(starts, n)
+    validation = np.zeros(n, dtype=bool)
+    for b in range(1, starts.size - 1, 2):
+        validation[starts[b] : starts[b + 1]] = True
+    return PreparedData(
+        source=record.source,
+        time=time,
+        tc1=arrays[0],
+        tc2=arrays[1],
+        ref=arrays[2] if len(arrays) > 2 else None,
+        dt=dt,
+        decimation=factor,
+        noise1=noise1,
+        noise2=noise2,
+        band_edge_hz=edges,
+        validation=validation,
+        block_starts=starts,
+    )

@@ -1,0 +1,107 @@
+"""Ranking the suspects: refit with each effect, keep what lowers the held-out error.
+
+An effect is *significant* when its refit lowers the raw held-out error (noise included, so
+that chance near the noise floor cannot pass) by at least :data:`MIN_RELATIVE_FALL` overall
+and in at least :data:`MIN_BLOCK_SHARE` of the validation blocks: one lucky block cannot carry
+it, and the held-out data, never fitted, guard against an effect that only adds freedom.
+Suspects are ranked by held-out error; when two are within
+:data:`TIE_TOLERANCE` of each other the one with fewer parameters ranks first.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..effects import Model
+from ..errors import TcompError
+from .heldout import Evaluator
+from .result import ModelFit, Suspect
+from .signatures import signature
+
+__all__ = ["MAX_EFFECTS", "is_significant", "next_round", "pick", "rank"]
+
+#: Least relative fall of the held-out error that counts.
+MIN_RELATIVE_FALL = 0.2
+#: Least share of validation blocks whose error must fall.
+MIN_BLOCK_SHARE = 0.7
+#: Suspects within this relative error of each other count as a tie.
+TIE_TOLERANCE = 0.03
+#: Most effects the staircase adds.
+MAX_EFFECTS = 3
+
+
+def is_significant(current: ModelFit, candidate: ModelFit) -> bool:
+    """Whether ``candidate`` lowers the held-out error of ``current`` significantly."""
+    if not (math.isfinite(candidate.raw_error_pct) and math.isfinite(current.raw_error_pct)):
+        return False
+    if candidate.raw_error_pct > (1.0 - MIN_RELATIVE_FALL) * current.raw_error_pct:
+        return False
+    before, after = current.block_errors_pct, candidate.block_errors_pct
+    if before.size == 0 or before.size != after.size:
+        return False
+    return float(np.mean(after < before)) >= MIN_BLOCK_SHARE
+
+
+def rank(suspects: Sequence[Suspect]) -> list[Suspect]:
+    """Best first: by held-out error, fewer parameters first among near-ties."""
+    ordered = sorted(suspects, key=lambda s: s.error_pct)
+    for i in range(1, len(ordered)):
+        j = i
+        while j > 0:
+            better, worse = ordered[j - 1], ordered[j]
+            tied = worse.error_pct <= (1.0 + TIE_TOLERANCE) * better.error_pct
+            simpler = (
+                worse.fit is not None
+                and better.fit is not None
+                and worse.fit.n_params < better.fit.n_params
+            )
+            if not (tied and simpler and worse.significant >= better.significant):
+                break
+            ordered[j - 1], ordered[j] = worse, better
+            j -= 1
+    return ordered
+
+
+def next_round(
+    evaluator: Evaluator, model: Model, current: ModelFit, candidates: Sequence[str]
+) -> list[Suspect]:
+    """Refit ``model`` plus each candidate effect; the suspects, best first."""
+    suspects = []
+    for name in candidates:
+        try:
+            fitted = evaluator.fit(model.with_effect(name))
+            fit = evaluator.evaluate(fitted)
+        except (TcompError, ValueError, np.linalg.LinAlgError) as exc:
+            suspects.append(
+                Suspect(
+                    effect=name,
+                    error_pct=math.inf,
+                    evidence=-math.inf,
+                    signature=f"the refit failed: {exc}",
+                    significant=False,
+                )
+            )
+            continue
+        evidence = 1.0 - fit.error_pct / current.error_pct if current.error_pct > 0 else 0.0
+        suspects.append(
+            Suspect(
+                effect=name,
+                error_pct=fit.error_pct,
+                evidence=evidence,
+                signature=signature(name, evaluator, current, fit),
+                significant=is_significant(current, fit),
+                fit=fit,
+            )
+        )
+    return rank(suspects)
+
+
+def pick(suspects: Sequence[Suspect]) -> Suspect | None:
+    """The best significant suspect, or None."""
+    for suspect in suspects:
+        if suspect.significant:
+            return suspect
+    return None

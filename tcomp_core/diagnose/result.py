@@ -1,0 +1,219 @@
+"""Results of the model-versus-measurement diagnosis (plain data, no computation)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .residuals import FailureAnalysis
+
+__all__ = ["Diagnosis", "ModelFit", "Suspect", "diagnosis_to_dict"]
+
+
+def _finite(value: float) -> float | None:
+    """A float for JSON, None for inf or NaN (JSON has neither)."""
+    return float(value) if np.isfinite(value) else None
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelFit:
+    """One fitted model (the base model or the base plus effects) and its held-out error.
+
+    Attributes
+    ----------
+    effects : tuple of str
+        Effects added to the first-order base model, in the order they were added.
+    params : dict of str to float
+        Every fitted parameter: ``tau1``, ``tau2`` (s) and the effects' own parameters.
+    tau1, tau2 : float
+        Time constants of thermocouples 1 and 2, s.
+    error_pct : float
+        Held-out model error beyond the noise floor, % (see :mod:`tcomp_core.diagnose.heldout`).
+    raw_error_pct : float
+        Held-out error with the noise left in, % (100 − MATLAB ``compare``'s fit %).
+    noise_floor_pct : float
+        What the sensors' noise alone contributes to ``raw_error_pct``, %.
+    train_error_pct : float
+        ``error_pct`` measured on the estimation blocks, %.
+    block_errors_pct : ndarray, shape (B,)
+        Raw held-out error of each validation block, %.
+    predicted : ndarray, shape (N,)
+        Free-run simulation of the slow sensor from the fast one, degrees C (working rate).
+    gas1, gas2 : ndarray, shape (N,)
+        Gas temperature reconstructed from thermocouple 1 and from thermocouple 2, degrees C.
+    n_params : int
+        Number of fitted parameters.
+    """
+
+    effects: tuple[str, ...]
+    params: dict[str, float]
+    tau1: float
+    tau2: float
+    error_pct: float
+    raw_error_pct: float
+    noise_floor_pct: float
+    train_error_pct: float
+    block_errors_pct: NDArray[np.float64]
+    predicted: NDArray[np.float64]
+    gas1: NDArray[np.float64]
+    gas2: NDArray[np.float64]
+    n_params: int
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary: effects, tau1, tau2, error_pct and the parameters."""
+        return {
+            "effects": list(self.effects),
+            "tau1": float(self.tau1),
+            "tau2": float(self.tau2),
+            "error_pct": _finite(self.error_pct),
+            "raw_error_pct": _finite(self.raw_error_pct),
+            "noise_floor_pct": _finite(self.noise_floor_pct),
+            "train_error_pct": _finite(self.train_error_pct),
+            "params": {name: float(value) for name, value in self.params.items()},
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class Suspect:
+    """One candidate effect, refitted on top of the current model.
+
+    Attributes
+    ----------
+    effect : str
+        Effect name.
+    error_pct : float
+        Held-out error after adding the effect, %.
+    evidence : float
+        Relative fall of the held-out error, ``1 - error_pct / previous error_pct`` (higher is
+        stronger evidence; negative when the effect made the held-out error worse).
+    signature : str
+        In words: the residual signature that points to this effect, with its statistic.
+    significant : bool
+        Whether the fall passes the significance rule (see :mod:`tcomp_core.diagnose.ranking`).
+    fit : ModelFit or None
+        The refitted model (None when the refit failed; ``signature`` then says why).
+    """
+
+    effect: str
+    error_pct: float
+    evidence: float
+    signature: str
+    significant: bool
+    fit: ModelFit | None = None
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        return {
+            "effect": self.effect,
+            "error_pct": _finite(self.error_pct),
+            "evidence": _finite(self.evidence),
+            "signature": self.signature,
+            "significant": self.significant,
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class Diagnosis:
+    """Everything ``tcomp diagnose`` found.
+
+    Attributes
+    ----------
+    source : str
+        Where the data came from.
+    time : ndarray, shape (N,)
+        Sample times at the working rate, s from the first sample.
+    tc1, tc2 : ndarray, shape (N,)
+        Measurements at the working rate, degrees C.
+    ref : ndarray, shape (N,) or None
+        Reference (true or fast-sensor gas temperature) at the working rate, degrees C.
+    dt : float
+        Working sample interval, s (the data's, or after decimation).
+    slow : int
+        1 or 2: the slower thermocouple, the one simulated from the other in the comparison.
+    validation : ndarray of bool, shape (N,)
+        True on held-out (validation) samples, False on estimation samples.
+    eval_cutoff_hz : float
+        Low-pass cutoff applied to both compared signals in the held-out error, Hz.
+    sigma1, sigma2 : float
+        Noise standard deviations estimated from the spectra, degrees C.
+    phi : float
+        Estimated noise variance ratio ``sigma1**2 / sigma2**2``.
+    base : ModelFit
+        The first-order model of the paper (β-GTLS, φ = 1).
+    failure : FailureAnalysis
+        Where the base model fails (residual analysis).
+    suspects : list of Suspect
+        Every effect refitted on the base model, best first.
+    steps : list of ModelFit
+        The error staircase: the base model, then one entry per accepted effect.
+    rounds : list of list of Suspect
+        The suspects of every round of the staircase (``rounds[0] is suspects``).
+    verdict : str
+        The first accepted effect, or ``"none"``.
+    final : ModelFit
+        The last model of the staircase.
+    ref_error_pct : dict of str to float
+        When a reference is present: its rms difference from each reconstruction of the final
+        model (``"gas1"``, ``"gas2"``, ``"fused"``) in % of the reference's spread.
+    notes : list of str
+        Caveats found on the way (narrow-band excitation, decimation, ...).
+    """
+
+    source: str
+    time: NDArray[np.float64]
+    tc1: NDArray[np.float64]
+    tc2: NDArray[np.float64]
+    ref: NDArray[np.float64] | None
+    dt: float
+    slow: int
+    validation: NDArray[np.bool_]
+    eval_cutoff_hz: float
+    sigma1: float
+    sigma2: float
+    phi: float
+    base: ModelFit
+    failure: FailureAnalysis
+    suspects: list[Suspect]
+    steps: list[ModelFit]
+    rounds: list[list[Suspect]]
+    verdict: str
+    final: ModelFit
+    ref_error_pct: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+
+def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
+    """The JSON document of ``tcomp diagnose --json`` and ``tcomp fit --json``.
+
+    Keys: ``source``, ``samples``, ``dt``, ``slow``, ``error_definition``, ``noise``,
+    ``base`` {tau1, tau2, error_pct, ...}, ``where`` (findings and statistics), ``suspects``
+    (best first) [{effect, error_pct, evidence, signature, significant}], ``verdict`` (an effect
+    or ``"none"``), ``final`` {effects, tau1, tau2, error_pct, ...}, ``steps`` (the error
+    staircase), ``rounds``, ``ref_error_pct``, ``notes``.
+    """
+    return {
+        "source": diagnosis.source,
+        "samples": int(diagnosis.time.size),
+        "dt": diagnosis.dt,
+        "slow": diagnosis.slow,
+        "error_definition": (
+            "held-out free-run model error: 100 * sqrt(mean((simulated - measured)^2) - "
+            "noise floor) / std(measured) of the slow sensor "
+            f"(tc{diagnosis.slow}) simulated from the other one, both low-passed at "
+            f"{diagnosis.eval_cutoff_hz:.4g} Hz, over the validation blocks; raw_error_pct "
+            "keeps the noise in"
+        ),
+        "noise": {"sigma1": diagnosis.sigma1, "sigma2": diagnosis.sigma2, "phi": diagnosis.phi},
+        "base": diagnosis.base.summary(),
+        "where": diagnosis.failure.summary(),
+        "suspects": [suspect.summary() for suspect in diagnosis.suspects],
+        "verdict": diagnosis.verdict,
+        "final": diagnosis.final.summary(),
+        "steps": [step.summary() for step in diagnosis.steps],
+        "rounds": [[suspect.summary() for suspect in round_] for round_ in diagnosis.rounds],
+        "ref_error_pct": dict(diagnosis.ref_error_pct),
+        "notes": list(diagnosis.notes),
+    }

@@ -1,0 +1,136 @@
+"""In words: which residual signature points to an effect, and what its refit found.
+
+Each effect leaves its own mark on the residual of the model it is missing from:
+
+* conduction: a slow residual, its power below the support mode's corner frequency;
+* radiation: a residual that curves with the temperature level (T⁴);
+* velocity: time constants that drift together over the record;
+* delay: a residual correlated with the rate of change of the input at a small lag;
+* calibration: a residual offset and a slope against the temperature level;
+* noise_ratio: unequal noise floors in the two spectra (φ ≠ 1).
+
+The statistics here are computed on the residual of the model the effect is added to, so they
+hold in every round of the staircase.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..effects import Model
+from .heldout import Evaluator
+from .result import ModelFit
+
+__all__ = ["signature"]
+
+
+def _residual(evaluator: Evaluator, fit: ModelFit) -> tuple[NDArray, NDArray, NDArray]:
+    """Low-passed residual, slow reading and fast reading on the scored held-out samples."""
+    readings = evaluator.readings
+    measured = readings[evaluator.slow - 1]
+    residual = evaluator.lowpass(measured - fit.predicted)
+    mask = evaluator.data.validation & evaluator.scored_mask(Model(fit.effects, fit.params))
+    return residual[mask], measured[mask], readings[2 - evaluator.slow][mask]
+
+
+def _conduction(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    p = fit.params
+    corner = 1.0 / (2.0 * math.pi * p["tau_p"])
+    residual = evaluator.lowpass(evaluator.readings[evaluator.slow - 1] - current.predicted)
+    spectrum = np.abs(np.fft.rfft(residual - residual.mean())) ** 2
+    freqs = np.fft.rfftfreq(residual.size, evaluator.data.dt)
+    share = float(spectrum[freqs <= 3.0 * corner].sum() / spectrum.sum())
+    return (
+        f"{100 * share:.0f} % of the residual power lies below {3 * corner:.2g} Hz, a slow "
+        f"mode; refit: kappa1 = {p['kappa1']:.3g}, kappa2 = {p['kappa2']:.3g}, "
+        f"tau_p = {p['tau_p']:.3g} s"
+    )
+
+
+def _level_fit(residual: NDArray, level: NDArray) -> tuple[float, float, float]:
+    """Offset, slope and curvature of the residual against the centred level."""
+    centred = level - level.mean()
+    design = np.column_stack((np.ones_like(centred), centred, centred**2))
+    coefficients, *_ = np.linalg.lstsq(design, residual, rcond=None)
+    return float(coefficients[0]), float(coefficients[1]), float(coefficients[2])
+
+
+def _radiation(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    residual, level, _ = _residual(evaluator, current)
+    _, slope, curvature = _level_fit(residual, level)
+    p = fit.params
+    return (
+        f"the residual bends with the temperature level (slope {slope:.3g} degC/degC, "
+        f"curvature {curvature:.3g} /degC); refit: rho1 = {p['rho1']:.3g}, rho2 = "
+        f"{p['rho2']:.3g} (radiative/convective), wall {p['wall_c']:.4g} degC"
+    )
+
+
+def _velocity(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    factor = Model(fit.effects, fit.params).chains(evaluator.context)[0].factor
+    low, high = float(np.min(factor)), float(np.max(factor))
+    return (
+        "the time constants drift together over the record at a constant ratio; refit: "
+        f"tau factor s(t) from {low:.2f} to {high:.2f} ({100 * (high - low) / 2:.0f} % swing), "
+        f"tau2/tau1 = {fit.tau2 / fit.tau1:.3g}"
+    )
+
+
+def _delay(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    residual, _, fast = _residual(evaluator, current)
+    rate = np.gradient(fast)
+    max_lag = max(1, round(abs(fit.params["delay_s"]) / evaluator.data.dt) * 3 + 3)
+    lags = np.arange(-max_lag, max_lag + 1)
+    scale = np.std(residual) * np.std(rate) * residual.size
+    correlation = [
+        float(np.sum((residual - residual.mean()) * (np.roll(rate, lag) - rate.mean())) / scale)
+        for lag in lags
+    ]
+    best = int(np.argmax(np.abs(correlation)))
+    return (
+        f"the residual follows the input's rate of change (correlation {correlation[best]:.2f} "
+        f"at {1e3 * lags[best] * evaluator.data.dt:.3g} ms); refit: tc2 sees the gas "
+        f"{1e3 * fit.params['delay_s']:.3g} ms after tc1"
+    )
+
+
+def _calibration(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    residual, level, _ = _residual(evaluator, current)
+    offset, slope, _ = _level_fit(residual, level)
+    p = fit.params
+    return (
+        f"the residual has an offset ({offset:.3g} degC) and a slope against the level "
+        f"({slope:.3g} degC/degC); refit: tc2 reads {p['gain']:.4g} T {p['offset_c']:+.3g} degC"
+    )
+
+
+def _noise_ratio(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    data = evaluator.data
+    return (
+        f"the noise floors differ: sigma1 = {data.noise1.sigma:.3g} degC, sigma2 = "
+        f"{data.noise2.sigma:.3g} degC in the top of the spectra (phi = {data.phi_hat:.3g}), so "
+        f"GTLS with phi = 1 weights them wrongly; refit with phi: tau1 {current.tau1:.4g} -> "
+        f"{fit.tau1:.4g} s, tau2 {current.tau2:.4g} -> {fit.tau2:.4g} s"
+    )
+
+
+_SIGNATURES: dict[str, Callable[[Evaluator, ModelFit, ModelFit], str]] = {
+    "conduction": _conduction,
+    "radiation": _radiation,
+    "velocity": _velocity,
+    "delay": _delay,
+    "calibration": _calibration,
+    "noise_ratio": _noise_ratio,
+}
+
+
+def signature(name: str, evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    """One sentence: the residual evidence for effect ``name`` and what its refit found."""
+    return (
+        f"{_SIGNATURES[name](evaluator, current, fit)}; held-out error "
+        f"{current.error_pct:.3g} -> {fit.error_pct:.3g} %"
+    )

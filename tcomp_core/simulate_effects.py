@@ -1,0 +1,534 @@
+"""Two-thermocouple records with a hidden physical effect, simulated in continuous time.
+
+The records test the diagnosis: each holds one effect that the first-order model of Eq. (2)
+lacks (names as in :mod:`tcomp_core.effects`). Unlike :func:`tcomp_core.simulate.simulate_pair`,
+which uses the estimators' zero-order-hold difference equation (Eq. 4), the sensors here are
+integrated independently on a grid ``oversample`` times finer than the samples, with the gas
+temperature evaluated on that grid, and then point-sampled:
+
+* linear time-invariant sensors (no effect, ``conduction``, ``delay``, ``calibration``,
+  ``noise_ratio``) are solved exactly for the gas interpolated linearly between grid points,
+  which is what :func:`scipy.signal.lsim` computes; the first-order-hold discretisation is
+  applied with :func:`scipy.signal.lfilter`, as ``lsim`` steps in a Python loop;
+* ``radiation`` (nonlinear) and ``velocity`` (time-varying) are integrated with classical RK4
+  in steps of two grid intervals, the gas at the odd grid points being the exact midpoint
+  values; an odd ``oversample`` is rounded up to even for them.
+
+Every sensor starts in equilibrium with the gas at t = 0. Noise follows
+:func:`tcomp_core.simulate.add_noise`: K in percent of std(clean1), sensor 1 drawn first.
+
+=============  ===============================================================================
+effect         sensor i (τi dTi/dt = Tg − Ti unless stated)
+=============  ===============================================================================
+conduction     Gi(s) = [1 + κi/(1 + τp s)] / (1 + κi + τi s): slow mode τp, unity DC gain
+radiation      τi dTi/dt = Tg − Ti − ri (Ti⁴ − Tw⁴), temperatures in kelvin in the law
+velocity       τi(t) = τi0 (v(t)/v0)^(−m),  v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)
+delay          junction 2 sees the gas δ = delay_s later than junction 1
+calibration    tc2 reads gain · T2 + offset_c
+noise_ratio    σ2 = sigma_ratio · σ1, so φ = σ1²/σ2² = 1/sigma_ratio²
+=============  ===============================================================================
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import optimize, signal
+
+from .simulate import PAPER_DT, PAPER_TAU1, PAPER_TAU2, SignalKind, add_noise, gas_signal
+from .validation import check_sample_interval
+
+__all__ = [
+    "EFFECT_NAMES",
+    "EffectRecord",
+    "default_effect_params",
+    "simulate_effect",
+]
+
+EFFECT_NAMES: tuple[str, ...] = (
+    "conduction",
+    "radiation",
+    "velocity",
+    "delay",
+    "calibration",
+    "noise_ratio",
+)
+
+#: Offset between degrees C and kelvin. Kept here so the simulator imports nothing of the
+#: effect library it is meant to test.
+KELVIN = 273.15
+#: Gas level for ``radiation`` unless the caller sets ``mean``/``amplitude``: radiation only
+#: matters in hot gas, e.g. an exhaust or a combustor.
+RADIATION_MEAN_C = 700.0
+RADIATION_AMPLITUDE_C = 250.0
+#: Radiative to convective conductance 4 r1 T̄³ of sensor 1 at ``RADIATION_MEAN_C``.
+RADIATION_RHO1 = 0.08
+#: Phase of the velocity modulation at t = 0, rad: v(0) is not at a turning point.
+VELOCITY_PHASE = 0.3
+
+#: Allowed range of each effect parameter: lower bound, upper bound (always excluded), and
+#: whether the lower bound itself is allowed.
+_RANGES: dict[str, tuple[float, float, bool]] = {
+    "kappa1": (0.0, np.inf, True),
+    "kappa2": (0.0, np.inf, True),
+    "tau_p": (0.0, np.inf, False),
+    "r1": (0.0, np.inf, True),
+    "r2": (0.0, np.inf, True),
+    "wall_c": (-KELVIN, np.inf, False),
+    "m": (0.0, np.inf, True),
+    "depth": (0.0, 1.0, True),
+    "period_s": (0.0, np.inf, False),
+    "delay_s": (0.0, np.inf, True),
+    "gain": (0.0, np.inf, False),
+    "offset_c": (-np.inf, np.inf, False),
+    "sigma_ratio": (0.0, np.inf, False),
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class EffectRecord:
+    """A simulated two-thermocouple record with one hidden effect.
+
+    Attributes
+    ----------
+    time : ndarray, shape (N,)
+        Sample times in seconds, starting at 0.
+    gas : ndarray, shape (N,)
+        True gas temperature at junction 1 at the sample instants, degrees C.
+    tc1, tc2 : ndarray, shape (N,)
+        Noisy thermocouple readings, degrees C.
+    clean1, clean2 : ndarray, shape (N,)
+        Noise-free readings, degrees C.
+    tau1, tau2 : float
+        True time constants in seconds: the convective ones for ``radiation``, the nominal
+        τi0 (at v = v0) for ``velocity``.
+    dt : float
+        Sample interval in seconds.
+    effect : str or None
+        The hidden effect, one of :data:`EFFECT_NAMES`; None for plain first-order sensors.
+    params : dict of str to float
+        The effect's true parameters as used (defaults with the caller's overrides).
+    sigma1, sigma2 : float
+        Noise standard deviations, degrees C.
+    kind : str
+        Gas signal kind (see :func:`tcomp_core.simulate.gas_signal`).
+    """
+
+    time: NDArray[np.float64]
+    gas: NDArray[np.float64]
+    tc1: NDArray[np.float64]
+    tc2: NDArray[np.float64]
+    clean1: NDArray[np.float64]
+    clean2: NDArray[np.float64]
+    tau1: float
+    tau2: float
+    dt: float
+    effect: str | None
+    params: dict[str, float]
+    sigma1: float
+    sigma2: float
+    kind: str
+
+
+def _check_effect(effect: str | None) -> str | None:
+    """Return the effect name, None for no effect (``None`` or ``"none"``)."""
+    if effect is None or effect == "none":
+        return None
+    if effect not in EFFECT_NAMES:
+        raise ValueError(
+            f"unknown effect {effect!r}; choose one of {', '.join(EFFECT_NAMES)} or None"
+        )
+    return effect
+
+
+def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[str, float]:
+    """Default true parameters of an effect, strong enough to see in 10 s at K = 1–2 %.
+
+    Parameters
+    ----------
+    effect : str or None
+        One of :data:`EFFECT_NAMES`; None (or ``"none"``) has no parameters.
+    tau1, tau2 : float
+        Time constants of the two sensors in seconds; ``radiation`` scales r2 with them.
+
+    Returns
+    -------
+    dict of str to float
+        ``conduction``: kappa1, kappa2 (dimensionless), tau_p (s).
+        ``radiation``: r1, r2 (K⁻³), wall_c (degrees C); 4 r1 T̄³ = 0.08 at T̄ = 700 °C and
+        r2 = r1 (τ2/τ1)^(1/3), as a thicker wire radiates relatively more.
+        ``velocity``: m (dimensionless), depth (dimensionless), period_s (s).
+        ``delay``: delay_s (s). ``calibration``: gain (dimensionless), offset_c (degrees C).
+        ``noise_ratio``: sigma_ratio = σ2/σ1 (dimensionless).
+    """
+    effect = _check_effect(effect)
+    tau1, tau2 = _check_tau(tau1, "tau1"), _check_tau(tau2, "tau2")
+    if effect is None:
+        return {}
+    if effect == "conduction":
+        # κ1/κ2 = τ1/τ2 roughly, as for wires of one material (see effects.conduction).
+        return {"kappa1": 0.05, "kappa2": 0.25, "tau_p": 1.0}
+    if effect == "radiation":
+        r1 = RADIATION_RHO1 / (4.0 * (RADIATION_MEAN_C + KELVIN) ** 3)
+        return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": 300.0}
+    if effect == "velocity":
+        return {"m": 0.6, "depth": 0.4, "period_s": 6.0}
+    if effect == "delay":
+        return {"delay_s": 0.008}
+    if effect == "calibration":
+        return {"gain": 1.03, "offset_c": -4.0}
+    return {"sigma_ratio": 2.5}
+
+
+def _check_tau(tau: float, name: str) -> float:
+    tau = float(tau)
+    if not (np.isfinite(tau) and tau > 0.0):
+        raise ValueError(f"{name}={tau!r} s must be finite and > 0")
+    return tau
+
+
+def _effect_params(
+    effect: str | None, tau1: float, tau2: float, overrides: Mapping[str, float] | None
+) -> dict[str, float]:
+    """Defaults of ``effect`` with ``overrides`` applied, each checked against its range."""
+    params = default_effect_params(effect, tau1, tau2)
+    for key, value in (overrides or {}).items():
+        if key not in params:
+            allowed = ", ".join(params) or "none"
+            raise ValueError(
+                f"unknown parameter {key!r} for effect {effect!r}; allowed: {allowed}"
+            )
+        params[key] = float(value)
+    for key, value in params.items():
+        lower, upper, lower_allowed = _RANGES[key]
+        above = value >= lower if lower_allowed else value > lower
+        if not (np.isfinite(value) and above and value < upper):
+            bracket = "[" if lower_allowed else "("
+            raise ValueError(
+                f"{effect} parameter {key}={value!r} outside {bracket}{lower}, {upper})"
+            )
+    return params
+
+
+def _gas_params(effect: str | None, signal_params: Mapping[str, float] | None) -> dict[str, float]:
+    """Gas signal parameters; hot gas for ``radiation`` unless the caller chose the level."""
+    params = dict(signal_params or {})
+    if effect == "radiation":
+        params.setdefault("mean", RADIATION_MEAN_C)
+        params.setdefault("amplitude", RADIATION_AMPLITUDE_C)
+    return params
+
+
+def _lti_response(
+    numerator: list[float], denominator: NDArray[np.float64], gas: NDArray[np.float64], step: float
+) -> NDArray[np.float64]:
+    """Response of a unity-DC-gain G(s) to the linearly interpolated ``gas``, from equilibrium.
+
+    Parameters
+    ----------
+    numerator, denominator : array_like
+        Polynomial coefficients of G(s) in descending powers of s.
+    gas : ndarray, shape (M,)
+        Input on a uniform grid, degrees C.
+    step : float
+        Grid spacing in seconds.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        Output at the grid points, degrees C; equal to :func:`scipy.signal.lsim` on the
+        deviation from ``gas[0]`` to rounding.
+    """
+    # The first-order hold is exact for an input linear between grid points; a zero state
+    # and a zero initial deviation mean equilibrium with gas[0].
+    b, a, _ = signal.cont2discrete((numerator, denominator), step, method="foh")
+    return gas[0] + signal.lfilter(np.ravel(b), a, gas - gas[0])
+
+
+def _first_order_tf(tau: float) -> tuple[list[float], NDArray[np.float64]]:
+    """G(s) = 1 / (1 + τ s) as (numerator, denominator)."""
+    return [1.0], np.array([tau, 1.0])
+
+
+def _conduction_tf(
+    tau: float, kappa: float, tau_p: float
+) -> tuple[list[float], NDArray[np.float64]]:
+    """G(s) = [1 + κ/(1 + τp s)] / (1 + κ + τ s) = (1 + κ + τp s) / ((1 + τp s)(1 + κ + τ s))."""
+    return [tau_p, 1.0 + kappa], np.polymul([tau_p, 1.0], [tau, 1.0 + kappa])
+
+
+def _radiation_equilibrium(gas_k: float, r: float, wall_k: float) -> float:
+    """Sensor temperature in K with Tg − T − r (T⁴ − Tw⁴) = 0 for constant gas ``gas_k`` (K)."""
+    low, high = sorted((gas_k, wall_k))
+    if r == 0.0 or low == high:
+        return gas_k
+    # The balance falls monotonically in T and changes sign between the gas and the wall.
+    return float(
+        optimize.brentq(
+            lambda temp: gas_k - temp - r * (temp**4 - wall_k**4), low, high, xtol=1e-12
+        )
+    )
+
+
+def _radiation_response(
+    gas_k: NDArray[np.float64], tau: float, r: float, wall_k: float, step: float, stride: int
+) -> NDArray[np.float64]:
+    """RK4 solution of τ dT/dt = Tg − T − r (T⁴ − Tw⁴), temperatures in K, from equilibrium.
+
+    Parameters
+    ----------
+    gas_k : ndarray, shape (M,)
+        Gas temperature in K on a grid of spacing ``step / 2``; ``M - 1`` is a multiple of
+        ``2 * stride``. Even points start the RK4 steps, odd points are their midpoints.
+    tau : float
+        Convective time constant in seconds.
+    r : float
+        Radiative coefficient in K⁻³.
+    wall_k : float
+        Wall temperature in K.
+    step : float
+        RK4 step in seconds.
+    stride : int
+        RK4 steps per output sample.
+
+    Returns
+    -------
+    ndarray, shape ((M - 1) // (2 * stride) + 1,)
+        Sensor temperature in K every ``stride`` steps.
+    """
+    gas = gas_k.tolist()
+    rate, wall4, half = 1.0 / tau, wall_k**4, 0.5 * step
+    temp = _radiation_equilibrium(gas[0], r, wall_k)
+    out = [temp]
+    i = 0
+    # Inlined scalar RK4: a Python loop over floats is ~20x faster than numpy on 2 elements.
+    for _ in range((len(gas) - 1) // (2 * stride)):
+        for _ in range(stride):
+            g0, gm, g1 = gas[i], gas[i + 1], gas[i + 2]
+            i += 2
+            k1 = (g0 - temp - r * (temp**4 - wall4)) * rate
+            y = temp + half * k1
+            k2 = (gm - y - r * (y**4 - wall4)) * rate
+            y = temp + half * k2
+            k3 = (gm - y - r * (y**4 - wall4)) * rate
+            y = temp + step * k3
+            k4 = (g1 - y - r * (y**4 - wall4)) * rate
+            temp += step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        out.append(temp)
+    return np.array(out)
+
+
+def _velocity_factor(
+    t: NDArray[np.float64], m: float, depth: float, period_s: float
+) -> NDArray[np.float64]:
+    """τ0/τ(t) = (v(t)/v0)^m with v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)."""
+    return (1.0 + depth * np.sin(2.0 * np.pi * t / period_s + VELOCITY_PHASE)) ** m
+
+
+def _linear_rk4_response(
+    gas: NDArray[np.float64], factor: NDArray[np.float64], tau0: float, step: float, stride: int
+) -> NDArray[np.float64]:
+    """RK4 solution of τ0 dT/dt = f(t) (Tg − T), i.e. τ(t) = τ0 / f(t), from equilibrium.
+
+    The equation is linear in T, so each RK4 step is T ← A T + B with A, B computed for all
+    steps at once; only that recursion runs in Python.
+
+    Parameters
+    ----------
+    gas, factor : ndarray, shape (M,)
+        Gas temperature (degrees C) and f(t) on a grid of spacing ``step / 2``, laid out as in
+        :func:`_radiation_response`.
+    tau0 : float
+        Time constant at f = 1, seconds.
+    step : float
+        RK4 step in seconds.
+    stride : int
+        RK4 steps per output sample.
+
+    Returns
+    -------
+    ndarray, shape ((M - 1) // (2 * stride) + 1,)
+        Sensor temperature in degrees C every ``stride`` steps.
+    """
+    # dT/dt = -p T + q; each RK4 slope k = alpha T + beta.
+    p = factor / tau0
+    q = p * gas
+    p0, pm, p1 = p[:-1:2], p[1::2], p[2::2]
+    q0, qm, q1 = q[:-1:2], q[1::2], q[2::2]
+    half = 0.5 * step
+    alpha1, beta1 = -p0, q0
+    alpha2, beta2 = -pm * (1.0 + half * alpha1), qm - pm * half * beta1
+    alpha3, beta3 = -pm * (1.0 + half * alpha2), qm - pm * half * beta2
+    alpha4, beta4 = -p1 * (1.0 + step * alpha3), q1 - p1 * step * beta3
+    gains = (1.0 + step / 6.0 * (alpha1 + 2.0 * alpha2 + 2.0 * alpha3 + alpha4)).tolist()
+    drives = (step / 6.0 * (beta1 + 2.0 * beta2 + 2.0 * beta3 + beta4)).tolist()
+    temp = float(gas[0])
+    out = [temp]
+    for k, (gain, drive) in enumerate(zip(gains, drives, strict=True), start=1):
+        temp = gain * temp + drive
+        if k % stride == 0:
+            out.append(temp)
+    return np.array(out)
+
+
+def _fine_time(n: int, dt: float, points_per_sample: int) -> NDArray[np.float64]:
+    """Uniform grid from 0 to the last sample instant with ``points_per_sample`` per interval."""
+    return np.arange((n - 1) * points_per_sample + 1) * (dt / points_per_sample)
+
+
+def _delayed_gas(
+    kind: SignalKind, t: NDArray[np.float64], delay: float, gas_params: Mapping[str, float]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Gas at junction 1, g(t + δ), and at junction 2, g(t), from one generator call.
+
+    Advancing junction 1 rather than delaying junction 2 keeps the times non-negative (the
+    exhaust generator is not defined before 0), and one call keeps signals that depend on the
+    whole time array (multisine normalisation, exhaust pulse heights) identical for both.
+    """
+    step = t[1] - t[0]
+    shift = round(delay / step)
+    if abs(delay - shift * step) <= 1e-9 * step:
+        # δ is a whole number of grid steps: one grid longer by the shift serves both junctions.
+        gas = gas_signal(kind, np.arange(t.size + shift) * step, **gas_params)
+        return gas[shift:], gas[: t.size]
+    gas = gas_signal(kind, np.concatenate((t + delay, t)), **gas_params)
+    return gas[: t.size], gas[t.size :]
+
+
+def _simulate_clean(
+    effect: str | None,
+    kind: SignalKind,
+    taus: tuple[float, float],
+    params: Mapping[str, float],
+    gas_params: Mapping[str, float],
+    n: int,
+    dt: float,
+    oversample: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Gas and the two noise-free readings at the ``n`` sample instants, degrees C."""
+    if effect in ("radiation", "velocity"):
+        stride = (oversample + 1) // 2
+        t = _fine_time(n, dt, 2 * stride)
+        gas = gas_signal(kind, t, **gas_params)
+        step = dt / stride
+        if effect == "radiation":
+            wall_k = params["wall_c"] + KELVIN
+            clean = [
+                _radiation_response(gas + KELVIN, tau, params[r], wall_k, step, stride) - KELVIN
+                for tau, r in zip(taus, ("r1", "r2"), strict=True)
+            ]
+        else:
+            factor = _velocity_factor(t, params["m"], params["depth"], params["period_s"])
+            clean = [_linear_rk4_response(gas, factor, tau, step, stride) for tau in taus]
+        return gas[:: 2 * stride], clean[0], clean[1]
+
+    t = _fine_time(n, dt, oversample)
+    step = dt / oversample
+    if effect == "delay":
+        gas, gas2 = _delayed_gas(kind, t, params["delay_s"], gas_params)
+    else:
+        gas = gas2 = gas_signal(kind, t, **gas_params)
+    if effect == "conduction":
+        models = [
+            _conduction_tf(tau, params[kappa], params["tau_p"])
+            for tau, kappa in zip(taus, ("kappa1", "kappa2"), strict=True)
+        ]
+    else:
+        models = [_first_order_tf(tau) for tau in taus]
+    clean1 = _lti_response(*models[0], gas, step)[::oversample]
+    clean2 = _lti_response(*models[1], gas2, step)[::oversample]
+    if effect == "calibration":
+        clean2 = params["gain"] * clean2 + params["offset_c"]
+    return gas[::oversample], clean1, clean2
+
+
+def simulate_effect(
+    effect: str | None,
+    kind: SignalKind = "multisine",
+    *,
+    tau1: float = PAPER_TAU1,
+    tau2: float = PAPER_TAU2,
+    dt: float = PAPER_DT,
+    duration: float = 10.0,
+    noise_percent: float = 1.0,
+    seed: int = 0,
+    params: Mapping[str, float] | None = None,
+    signal_params: Mapping[str, float] | None = None,
+    oversample: int = 20,
+) -> EffectRecord:
+    """Simulate two thermocouples in one gas with a hidden effect, in continuous time.
+
+    Parameters
+    ----------
+    effect : str or None
+        One of :data:`EFFECT_NAMES`, or None (``"none"``) for plain first-order sensors.
+    kind : {'sinusoid', 'ramp', 'multisine', 'exhaust'}
+        Gas temperature signal (:func:`tcomp_core.simulate.gas_signal`). For ``radiation`` its
+        ``mean`` and ``amplitude`` default to 700 and 250 degrees C.
+    tau1, tau2 : float
+        True time constants in seconds (τi0 for ``velocity``, convective for ``radiation``).
+    dt : float
+        Sample interval in seconds.
+    duration : float
+        Record length in seconds; ``round(duration / dt)`` samples.
+    noise_percent : float
+        Noise level K in percent of std(clean1) (Eq. 22), >= 0.
+    seed : int
+        Seed of the noise generator.
+    params : mapping of str to float, optional
+        Overrides of individual entries of :func:`default_effect_params`.
+    signal_params : mapping of str to float, optional
+        Keyword parameters of the gas signal generator.
+    oversample : int
+        Grid points per sample interval of the continuous simulation (rounded up to even for
+        ``radiation`` and ``velocity``).
+
+    Returns
+    -------
+    EffectRecord
+
+    Raises
+    ------
+    ValueError
+        On an unknown effect or parameter, a parameter out of its range, or a non-positive
+        ``dt``, ``duration``, ``tau1``, ``tau2`` or ``oversample``, or negative
+        ``noise_percent``.
+    """
+    effect = _check_effect(effect)
+    dt = check_sample_interval(dt)
+    if not (np.isfinite(duration) and duration > 0.0):
+        raise ValueError(f"{duration=} must be finite and > 0 s")
+    if not noise_percent >= 0.0:
+        raise ValueError(f"{noise_percent=} must be >= 0")
+    if int(oversample) != oversample or oversample < 1:
+        raise ValueError(f"{oversample=} must be a whole number >= 1")
+    n = round(duration / dt)
+    if n < 2:
+        raise ValueError(f"{duration=} s holds fewer than 2 samples at {dt=} s")
+    true_params = _effect_params(effect, tau1, tau2, params)
+    taus = (float(tau1), float(tau2))
+    gas, clean1, clean2 = _simulate_clean(
+        effect, kind, taus, true_params, _gas_params(effect, signal_params), n, dt, int(oversample)
+    )
+    phi = true_params["sigma_ratio"] ** -2 if effect == "noise_ratio" else 1.0
+    rng = np.random.default_rng(seed)
+    tc1, tc2, sigma1, sigma2 = add_noise(clean1, clean2, noise_percent, phi, rng)
+    return EffectRecord(
+        time=np.arange(n) * dt,
+        gas=gas,
+        tc1=tc1,
+        tc2=tc2,
+        clean1=clean1,
+        clean2=clean2,
+        tau1=taus[0],
+        tau2=taus[1],
+        dt=dt,
+        effect=effect,
+        params=true_params,
+        sigma1=sigma1,
+        sigma2=sigma2,
+        kind=kind,
+    )

@@ -1,0 +1,245 @@
+"""Continuous-time records with hidden effects: against analytic responses and limiting cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+from scipy.interpolate import CubicSpline
+
+from tcomp_core.effects import EFFECT_NAMES as LIBRARY_EFFECT_NAMES
+from tcomp_core.models import FirstOrderLag
+from tcomp_core.simulate import gas_signal
+from tcomp_core.simulate_effects import (
+    EFFECT_NAMES,
+    KELVIN,
+    VELOCITY_PHASE,
+    _conduction_tf,
+    _lti_response,
+    _velocity_factor,
+    default_effect_params,
+    simulate_effect,
+)
+
+HOT = {"mean": 700.0, "amplitude": 250.0}
+
+
+def clean(effect, kind="sinusoid", **kwargs):
+    return simulate_effect(effect, kind, noise_percent=0.0, **kwargs)
+
+
+def test_effect_names_match_the_effect_library():
+    assert EFFECT_NAMES == LIBRARY_EFFECT_NAMES
+
+
+def test_plain_sensors_agree_with_the_first_order_lag_on_a_midpoint_hold():
+    record = clean(None, duration=2.0)
+    for tau, reading in ((record.tau1, record.clean1), (record.tau2, record.clean2)):
+        # Holding the gas at mid-interval makes the difference equation second order in dt;
+        # its remaining O(dt²/τ) timing error is 0.17 % of the std here. Holding it at the
+        # interval start (half a sample late) would miss by 9 %.
+        midpoint_gas = gas_signal("sinusoid", record.time + record.dt / 2)
+        expected = FirstOrderLag(tau=tau).respond(midpoint_gas, record.dt, initial=record.gas[0])
+        assert np.max(np.abs(reading - expected)) < 0.002 * np.std(reading)
+
+
+def test_plain_sensors_reach_the_analytic_steady_state_sinusoid():
+    record = clean(None, duration=2.0)
+    omega = 2 * np.pi * 10.0
+    after_transient = record.time > 1.5
+    for tau, reading in ((record.tau1, record.clean1), (record.tau2, record.clean2)):
+        phase = np.arctan(omega * tau)
+        expected = 100.0 + 50.0 * np.cos(phase) * np.sin(omega * record.time - phase)
+        error = np.abs(reading - expected)[after_transient]
+        assert np.max(error) < 1e-5 * 50.0
+
+
+def test_linear_response_matches_lsim():
+    step, gas = 1e-4, gas_signal("multisine", np.arange(5001) * 1e-4)
+    time = np.arange(gas.size) * step
+    numerator, denominator = _conduction_tf(0.1168, 0.25, 1.0)
+    _, expected, _ = signal.lsim((numerator, denominator), gas - gas[0], time)
+    response = _lti_response(numerator, denominator, gas, step)
+    assert np.max(np.abs(response - gas[0] - expected)) < 1e-8 * np.ptp(gas)
+
+
+@pytest.mark.parametrize(("tau", "kappa"), [(0.0238, 0.05), (0.1168, 0.25)])
+def test_conduction_step_response(tau, kappa):
+    step = 1e-4
+    time = np.arange(100_001) * step
+    gas = np.ones_like(time)
+    gas[0] = 0.0  # the step rises linearly over the first interval, i.e. half a step late
+    numerator, denominator = _conduction_tf(tau, kappa, 1.0)
+    response = _lti_response(numerator, denominator, gas, step)
+    # The analytic step response at t_k - step/2 over the first 0.5 s (lsim loops in Python).
+    _, analytic = signal.step((numerator, denominator), T=np.arange(10_002) * step / 2)
+    assert np.max(np.abs(response[1:5002] - analytic[1::2])) < 1e-5
+    # Unity DC gain: after ten slow time constants the step has arrived.
+    assert abs(response[-1] - 1.0) < 1e-4
+    # The slow mode: at 3τ a first-order lag is at 1 - e^-3, this sensor lacks about κ/(1+κ).
+    deficit = (1.0 - np.exp(-3.0)) - response[round(3 * tau / step)]
+    assert 0.5 < deficit / (kappa / (1.0 + kappa)) < 1.0
+
+
+def test_conduction_record_lags_plain_sensors_and_reduces_to_them_without_conduction():
+    plain = clean(None, "multisine", duration=4.0)
+    conducting = clean("conduction", "multisine", duration=4.0)
+    same = clean("conduction", "multisine", duration=4.0, params={"kappa1": 0.0, "kappa2": 0.0})
+    np.testing.assert_allclose(same.clean1, plain.clean1, atol=1e-9)
+    np.testing.assert_allclose(same.clean2, plain.clean2, atol=1e-9)
+    # The slow mode holds back a visible part of the response: far above 1 % noise.
+    assert np.std(conducting.clean2 - plain.clean2) > 0.1 * np.std(plain.clean2)
+    assert conducting.params == {"kappa1": 0.05, "kappa2": 0.25, "tau_p": 1.0}
+
+
+def test_radiation_steady_state_solves_the_balance_and_reads_low():
+    gas_c = 800.0
+    record = clean("radiation", duration=1.0, signal_params={"mean": gas_c, "amplitude": 0.0})
+    wall_k = record.params["wall_c"] + KELVIN
+    for r, reading in ((record.params["r1"], record.clean1), (record.params["r2"], record.clean2)):
+        temp = reading + KELVIN
+        balance = gas_c + KELVIN - temp - r * (temp**4 - wall_k**4)
+        assert np.max(np.abs(balance)) < 1e-8
+        assert np.ptp(reading) < 1e-8
+        # Hotter than the wall, the junction loses heat by radiation: tens of kelvin here.
+        assert np.all(gas_c - reading > 10.0)
+    assert record.clean2[0] < record.clean1[0]  # r2 > r1: the thicker wire reads lower
+
+
+def test_radiation_defaults_use_hot_gas_and_the_stated_conductance():
+    params = default_effect_params("radiation", 0.0238, 0.1168)
+    assert 4 * params["r1"] * (700.0 + KELVIN) ** 3 == pytest.approx(0.08)
+    assert params["r2"] / params["r1"] == pytest.approx((0.1168 / 0.0238) ** (1 / 3))
+    record = clean("radiation", duration=2.0)
+    assert np.mean(record.gas) == pytest.approx(700.0, abs=5.0)
+    assert np.ptp(record.gas) == pytest.approx(500.0, rel=0.01)
+    assert np.mean(record.gas - record.clean1) > 10.0
+
+
+@pytest.mark.parametrize("kind", ["sinusoid", "multisine"])
+def test_radiation_without_radiation_is_the_plain_sensor(kind):
+    plain = clean(None, kind, duration=3.0, signal_params=HOT)
+    cold = clean("radiation", kind, duration=3.0, params={"r1": 0.0, "r2": 0.0})
+    for mine, theirs in ((cold.clean1, plain.clean1), (cold.clean2, plain.clean2)):
+        assert np.max(np.abs(mine - theirs)) < 1e-4 * np.std(theirs)
+
+
+def test_velocity_without_velocity_dependence_is_the_plain_sensor():
+    plain = clean(None, "multisine", duration=3.0)
+    constant = clean("velocity", "multisine", duration=3.0, params={"m": 0.0})
+    for mine, theirs in ((constant.clean1, plain.clean1), (constant.clean2, plain.clean2)):
+        assert np.max(np.abs(mine - theirs)) < 1e-4 * np.std(theirs)
+
+
+def _phase_lag(reading, gas, time, centre, omega, half_width=0.3):
+    """Phase of the gas relative to the reading at ``omega``, over a window of whole periods."""
+    window = (time >= centre - half_width) & (time < centre + half_width - 1e-9)
+    carrier = np.exp(-1j * omega * time[window])
+    gas_phasor = np.sum((gas[window] - np.mean(gas[window])) * carrier)
+    reading_phasor = np.sum((reading[window] - np.mean(reading[window])) * carrier)
+    return float(np.angle(gas_phasor / reading_phasor))
+
+
+def test_velocity_lag_is_larger_where_the_flow_is_slow():
+    record = clean("velocity", duration=6.0)
+    omega = 2 * np.pi * 10.0
+    params = record.params
+    # v/v0 = 1 + 0.4 sin(2π t/6 + 0.3) peaks at t = 1.21 s and dips at t = 4.21 s.
+    fast_t, slow_t = [
+        (angle - VELOCITY_PHASE) * params["period_s"] / (2 * np.pi)
+        for angle in (np.pi / 2, 3 * np.pi / 2)
+    ]
+    for tau0, reading in ((record.tau1, record.clean1), (record.tau2, record.clean2)):
+        lags = []
+        for centre in (fast_t, slow_t):
+            lag = _phase_lag(reading, record.gas, record.time, centre, omega)
+            factor = _velocity_factor(np.array([centre]), **params)[0]
+            # Quasi-static: the lag of a first-order sensor with τ(t) = τ0 / factor.
+            assert lag == pytest.approx(np.arctan(omega * tau0 / factor), abs=0.01)
+            lags.append(lag)
+        assert lags[1] > lags[0] + 0.05
+
+
+@pytest.mark.parametrize(
+    ("kind", "delay_s"), [("multisine", 0.008), ("sinusoid", 0.00523), ("exhaust", 0.006)]
+)
+def test_delayed_junction_reads_the_first_one_delay_later(kind, delay_s):
+    record = clean("delay", kind, tau2=0.0238, duration=2.0, params={"delay_s": delay_s})
+    settled = record.time > 1.0  # the different starts have decayed: e^(-1/τ) < 1e-18
+    # tc1 at t - δ from a cubic spline; exact (spline nodes) when δ is whole samples.
+    shifted = CubicSpline(record.time, record.clean1)(record.time - delay_s)
+    error = np.abs(record.clean2 - shifted)[settled]
+    tolerance = 1e-4 if kind == "sinusoid" else 1e-9
+    assert np.max(error) < tolerance * np.std(record.clean1)
+
+
+def test_delay_is_visible_in_the_default_record():
+    plain = clean(None, "multisine", duration=3.0)
+    delayed = clean("delay", "multisine", duration=3.0)
+    # Sensor 2 sees the same gas: the plain sensor's response, delay_s later.
+    lag = round(delayed.params["delay_s"] / delayed.dt)
+    np.testing.assert_allclose(delayed.clean2, plain.clean2, atol=1e-9)
+    np.testing.assert_allclose(delayed.clean1[1000:-lag], plain.clean1[1000 + lag :], atol=1e-9)
+
+
+def test_calibration_scales_and_offsets_sensor_two_only():
+    plain = simulate_effect(None, duration=3.0, seed=5)
+    record = simulate_effect("calibration", duration=3.0, seed=5)
+    np.testing.assert_array_equal(record.clean1, plain.clean1)
+    np.testing.assert_allclose(record.clean2, 1.03 * plain.clean2 - 4.0, atol=1e-9)
+    assert record.sigma1 == record.sigma2 == plain.sigma1
+    np.testing.assert_allclose(record.tc2 - record.clean2, plain.tc2 - plain.clean2, atol=1e-9)
+
+
+def test_noise_ratio_sets_unequal_noise():
+    record = simulate_effect("noise_ratio", duration=10.0, noise_percent=2.0, seed=3)
+    assert record.sigma1 == pytest.approx(0.02 * np.std(record.clean1))
+    assert record.sigma2 == pytest.approx(2.5 * record.sigma1)
+    measured = np.std(record.tc2 - record.clean2) / np.std(record.tc1 - record.clean1)
+    assert measured == pytest.approx(2.5, rel=0.05)
+
+
+def test_same_seed_same_record_other_seed_other_noise():
+    first = simulate_effect("radiation", duration=1.0, seed=7)
+    again = simulate_effect("radiation", duration=1.0, seed=7)
+    other = simulate_effect("radiation", duration=1.0, seed=8)
+    for name in ("time", "gas", "tc1", "tc2", "clean1", "clean2"):
+        np.testing.assert_array_equal(getattr(first, name), getattr(again, name))
+    np.testing.assert_array_equal(first.clean1, other.clean1)
+    assert not np.allclose(first.tc1, other.tc1)
+    assert not np.allclose(first.tc2, other.tc2)
+
+
+@pytest.mark.parametrize("effect", [None, *EFFECT_NAMES])
+def test_every_effect_gives_a_well_formed_record(effect):
+    record = simulate_effect(effect, "exhaust", duration=1.0, dt=0.001)
+    assert record.time.shape == record.gas.shape == record.tc1.shape == (1000,)
+    assert record.effect == effect and record.kind == "exhaust"
+    assert record.params == default_effect_params(effect, record.tau1, record.tau2)
+    for array in (record.gas, record.tc1, record.tc2, record.clean1, record.clean2):
+        assert np.all(np.isfinite(array))
+    # Equilibrium at t = 0: the plain sensors start at the gas temperature.
+    if effect in (None, "conduction", "velocity", "noise_ratio"):
+        assert record.clean1[0] == pytest.approx(record.gas[0])
+
+
+@pytest.mark.parametrize(
+    ("effect", "kwargs", "match"),
+    [
+        ("friction", {}, "conduction, radiation"),
+        ("delay", {"params": {"lag_s": 0.1}}, "'lag_s'.*delay_s"),
+        (None, {"params": {"gain": 1.0}}, "'gain'"),
+        ("velocity", {"params": {"depth": 1.0}}, "depth"),
+        ("conduction", {"params": {"tau_p": 0.0}}, "tau_p"),
+        (None, {"dt": 0.0}, "dt"),
+        (None, {"dt": -0.001}, "dt"),
+        (None, {"duration": 0.0}, "duration"),
+        (None, {"duration": -1.0}, "duration"),
+        (None, {"noise_percent": -1.0}, "noise_percent"),
+        (None, {"oversample": 0}, "oversample"),
+        (None, {"tau1": 0.0}, "tau1"),
+    ],
+)
+def test_bad_input_is_refused(effect, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        simulate_effect(effect, duration=kwargs.pop("duration", 1.0), **kwargs)
