@@ -232,8 +232,9 @@ def diagnose(
     model, base = _fit_base(evaluator, taus)
     failure = _failure(evaluator, base)
     steps, rounds = _staircase(evaluator, model, base, candidates, max_effects)
+    steps[-1] = evaluator.refit_whole(steps[-1])
     verdict = steps[1].effects[0] if len(steps) > 1 else "none"
-    return _diagnosis(evaluator, base, failure, steps, rounds, verdict)
+    return _diagnosis(evaluator, steps[0], failure, steps, rounds, verdict)
 
 
 def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
@@ -274,5 +275,6 @@ def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
             )
         )
         steps.append(fit)
+    steps[-1] = evaluator.refit_whole(steps[-1])
     verdict = effects[-1] if effects else "none"
-    return _diagnosis(evaluator, base, failure, steps, [suspects] if suspects else [], verdict)
+    return _diagnosis(evaluator, steps[0], failure, steps, [suspects] if suspects else [], verdict)

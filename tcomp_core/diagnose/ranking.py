@@ -5,7 +5,10 @@ that chance near the noise floor cannot pass) by at least :data:`MIN_RELATIVE_FA
 and in at least :data:`MIN_BLOCK_SHARE` of the validation blocks: one lucky block cannot carry
 it, and the held-out data, never fitted, guard against an effect that only adds freedom.
 Suspects are ranked by held-out error; when two are within
-:data:`TIE_TOLERANCE` of each other the one with fewer parameters ranks first.
+:data:`TIE_TOLERANCE` of each other the one with fewer parameters ranks first, except for
+radiation against calibration, which both explain a level-dependent offset between the
+sensors: there the residual's curvature against the level decides (T⁴ bends it, a gain and
+offset do not; :data:`CURVATURE_T`).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import numpy as np
 from ..effects import Model
 from ..errors import TcompError
 from .heldout import Evaluator
+from .residuals import level_errors
 from .result import ModelFit, Suspect
 from .signatures import signature
 
@@ -31,6 +35,9 @@ MIN_BLOCK_SHARE = 0.7
 TIE_TOLERANCE = 0.03
 #: Most effects the staircase adds.
 MAX_EFFECTS = 3
+#: |t| of the residual's curvature against the level above which radiation beats a tied
+#: calibration.
+CURVATURE_T = 3.0
 
 
 def is_significant(current: ModelFit, candidate: ModelFit) -> bool:
@@ -96,7 +103,28 @@ def next_round(
                 fit=fit,
             )
         )
-    return rank(suspects)
+    return _radiation_or_calibration(rank(suspects), evaluator, current)
+
+
+def _radiation_or_calibration(
+    ranked: list[Suspect], evaluator: Evaluator, current: ModelFit
+) -> list[Suspect]:
+    """Order a near-tie of radiation and calibration at the top by the residual's curvature."""
+    if len(ranked) < 2 or {ranked[0].effect, ranked[1].effect} != {"radiation", "calibration"}:
+        return ranked
+    first, second = ranked[0], ranked[1]
+    if second.error_pct > (1.0 + TIE_TOLERANCE) * first.error_pct:
+        return ranked
+    readings = evaluator.readings
+    measured = readings[evaluator.slow - 1]
+    residual = evaluator.lowpass(measured - current.predicted)
+    mask = evaluator.data.validation & evaluator.scored_mask(
+        Model(current.effects, current.params)
+    )
+    bent = abs(level_errors(residual[mask], measured[mask]).curvature_t) > CURVATURE_T
+    radiation, calibration = (first, second) if first.effect == "radiation" else (second, first)
+    top = [radiation, calibration] if bent else [calibration, radiation]
+    return top + ranked[2:]
 
 
 def pick(suspects: Sequence[Suspect]) -> Suspect | None:

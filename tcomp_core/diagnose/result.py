@@ -154,7 +154,8 @@ class Diagnosis:
     verdict : str
         The first accepted effect, or ``"none"``.
     final : ModelFit
-        The last model of the staircase.
+        The last model of the staircase, its parameters refitted on the whole record (its
+        errors are still the held-out ones). When no effect is added it is the base model.
     ref_error_pct : dict of str to float
         When a reference is present: its rms difference from each reconstruction of the final
         model (``"gas1"``, ``"gas2"``, ``"fused"``) in % of the reference's spread.

@@ -1,0 +1,425 @@
+"""The HTML report of ``tcomp diagnose``: one self-contained page with embedded figures.
+
+The page holds no external reference: figures are PNGs drawn with
+:class:`matplotlib.figure.Figure` (no pyplot, no GUI backend) and embedded as base64 data URIs,
+the style sheet is inline, and every piece of text is escaped.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import itertools
+import math
+from collections.abc import Iterable, Sequence
+from html import escape
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from numpy.typing import NDArray
+
+from .diagnose.residuals import Autocorrelation
+from .diagnose.result import Diagnosis, ModelFit, Suspect
+
+__all__ = ["write_report"]
+
+#: Resolution of the embedded figures, dots per inch.
+FIGURE_DPI = 90
+#: Most points drawn per line (longer series are thinned by a stride).
+MAX_POINTS = 20_000
+#: The zoomed views show this many periods of the dominant frequency ...
+ZOOM_PERIODS = 5.0
+#: ... or this long when the record has no clear dominant frequency, s.
+ZOOM_DEFAULT_S = 1.0
+
+_STYLE = """
+body { font-family: sans-serif; max-width: 70em; margin: 1em auto; padding: 0 1em;
+       color: #222; line-height: 1.4; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; margin: 0.5em 0; }
+th, td { border: 1px solid #ccc; padding: 0.2em 0.6em; text-align: left; vertical-align: top; }
+th { background: #f2f2f2; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
+img { max-width: 100%; height: auto; }
+.verdict { font-size: 1.2em; font-weight: bold; }
+"""
+
+
+# -- html helpers -------------------------------------------------------------------------------
+
+
+def _num(value: float, spec: str = ".4g") -> str:
+    """A number for the page; ``n/a`` for NaN and ``inf`` for infinities."""
+    value = float(value)
+    if math.isnan(value):
+        return "n/a"
+    return format(value, spec) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
+    """An HTML table; cells holding numbers are right-aligned. All text is escaped."""
+    head = "".join(f"<th>{escape(h)}</th>" for h in header)
+    body = []
+    for row in rows:
+        cells = "".join(
+            f'<td class="num">{escape(_num(c))}</td>'
+            if isinstance(c, float)
+            else f"<td>{escape(str(c))}</td>"
+            for c in row
+        )
+        body.append(f"<tr>{cells}</tr>")
+    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def _list(items: Iterable[str]) -> str:
+    entries = "".join(f"<li>{escape(item)}</li>" for item in items)
+    return f"<ul>{entries}</ul>" if entries else "<p>none</p>"
+
+
+def _section(title: str, *parts: str) -> str:
+    return f"<section><h2>{escape(title)}</h2>{''.join(parts)}</section>"
+
+
+def _image(figure: Figure, alt: str) -> str:
+    """The figure as an embedded PNG (no metadata naming the software)."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=FIGURE_DPI, metadata={"Software": None})
+    data = base64.b64encode(buffer.getvalue()).decode("ascii")
+    return f'<p><img alt="{escape(alt)}" src="data:image/png;base64,{data}"></p>'
+
+
+# -- data helpers -------------------------------------------------------------------------------
+
+
+def _label(fit: ModelFit) -> str:
+    return "base" if not fit.effects else "base + " + " + ".join(fit.effects)
+
+
+def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Start and stop indices of the runs of True in ``mask``."""
+    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+
+
+def _zoom(diagnosis: Diagnosis) -> slice:
+    """About 5 periods of the slow sensor's dominant frequency, from the first held-out block."""
+    measured = (diagnosis.tc1, diagnosis.tc2)[diagnosis.slow - 1]
+    n = measured.size
+    spectrum = np.abs(np.fft.rfft(measured - measured.mean()))
+    peak = int(np.argmax(spectrum[1:])) + 1  # cycles per record
+    length_s = ZOOM_PERIODS * n * diagnosis.dt / peak if peak > 1 else ZOOM_DEFAULT_S
+    length = min(max(10, round(length_s / diagnosis.dt)), n // 2)
+    runs = _runs(diagnosis.validation)
+    start = min(int(runs[0][0]) if runs else 0, n - length)
+    return slice(start, start + length)
+
+
+def _plot(ax: Axes, time: NDArray, values: NDArray, **style: object) -> None:
+    step = max(1, values.size // MAX_POINTS)
+    ax.plot(time[::step], values[::step], **style)
+
+
+def _shade(ax: Axes, diagnosis: Diagnosis, window: slice) -> None:
+    time = diagnosis.time[window]
+    for k, (start, stop) in enumerate(_runs(diagnosis.validation[window])):
+        label = "held out" if k == 0 else None
+        ax.axvspan(time[start], time[stop - 1], color="tab:green", alpha=0.08, label=label)
+
+
+# -- figures ------------------------------------------------------------------------------------
+
+
+def _comparison_figure(diagnosis: Diagnosis) -> Figure:
+    slow = diagnosis.slow
+    measured = (diagnosis.tc1, diagnosis.tc2)[slow - 1]
+    fits = [diagnosis.base] + ([diagnosis.final] if diagnosis.final.effects else [])
+    figure = Figure(figsize=(10, 6.5), layout="constrained")
+    axes = figure.subplots(2, 1)
+    for ax, window in zip(axes, (slice(None), _zoom(diagnosis)), strict=True):
+        time = diagnosis.time[window]
+        _shade(ax, diagnosis, window)
+        for fit in fits:
+            _plot(ax, time, fit.predicted[window], linewidth=1.4, label=f"{_label(fit)} free run")
+        _plot(ax, time, measured[window], color="black", linewidth=0.7, label=f"tc{slow} measured")
+        ax.set_ylabel("temperature (°C)")
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"tc{slow} simulated from tc{3 - slow}: whole record and zoom")
+    axes[1].set_xlabel("time (s)")
+    axes[0].legend(fontsize=8)
+    return figure
+
+
+def _residual_figure(diagnosis: Diagnosis) -> Figure:
+    acf, ccf = diagnosis.failure.acf, diagnosis.failure.ccf_input
+    figure = Figure(figsize=(10, 3.5), layout="constrained")
+    left, right = figure.subplots(1, 2)
+    for ax, result, title in (
+        (left, acf, "autocorrelation of the residual"),
+        (right, ccf, "residual vs fast sensor's rate (positive lag: residual follows)"),
+    ):
+        lags_ms = 1e3 * result.lags_s
+        ax.axhspan(-result.bound, result.bound, color="tab:blue", alpha=0.15, label="bound")
+        ax.plot(lags_ms, result.values, color="black", linewidth=0.9)
+        ax.axhline(0.0, color="grey", linewidth=0.5)
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("lag (ms)")
+        ax.grid(alpha=0.3)
+    right.plot(1e3 * ccf.peak_lag_s, ccf.peak, "o", color="tab:red", label="peak")
+    left.set_ylabel("correlation")
+    right.legend(fontsize=8)
+    return figure
+
+
+def _where_figure(diagnosis: Diagnosis) -> Figure:
+    failure = diagnosis.failure
+    figure = Figure(figsize=(10, 7), layout="constrained")
+    (errors, taus), (bands, levels) = figure.subplots(2, 2)
+    windows = failure.windowed_error
+    errors.bar(windows.centres_s, windows.error_pct, width=0.8 * failure.window_s)
+    errors.set(title="held-out error per window", xlabel="time (s)", ylabel="error (%)")
+    wt = failure.windowed_tau
+    for values, name, marker in ((wt.tau1, "tau1", "o-"), (wt.tau2, "tau2", "s-")):
+        finite = values[np.isfinite(values)]
+        median = float(np.median(finite)) if finite.size else math.nan
+        label = f"{name} (median {_num(1e3 * median, '.3g')} ms)"
+        taus.plot(wt.centres_s, 100.0 * (values / median - 1.0), marker, label=label)
+    taus.set(title="time constants per window (beta-GTLS)", xlabel="time (s)")
+    taus.set_ylabel("change from median (%)")
+    taus.legend(fontsize=8)
+    b = failure.bands
+    names = [f"{_num(lo, '.3g')}–{_num(hi, '.3g')}" for lo, hi in itertools.pairwise(b.edges_hz)]
+    bands.bar(range(len(names)), 100 * b.residual_share)
+    bands.set_xticks(range(len(names)), names, rotation=30, fontsize=8)
+    bands.set(title="share of residual power per band", xlabel="band (Hz)", ylabel="share (%)")
+    lv = failure.levels
+    levels.errorbar(
+        lv.centres, lv.mean, yerr=lv.std, fmt="o", capsize=3, label="binned mean ± std"
+    )
+    grid = np.linspace(lv.centres.min(), lv.centres.max(), 100)
+    levels.plot(grid, lv.fitted(grid), color="tab:red", label="quadratic fit")
+    levels.set(title="residual vs level", xlabel="level (°C)", ylabel="residual (°C)")
+    levels.legend(fontsize=8)
+    for ax in (errors, taus, bands, levels):
+        ax.grid(alpha=0.3)
+    return figure
+
+
+def _staircase_figure(steps: Sequence[ModelFit]) -> Figure:
+    figure = Figure(figsize=(max(5.0, 1.6 * len(steps) + 2.0), 3.5), layout="constrained")
+    ax = figure.subplots()
+    labels = ["base", *(f"+ {step.effects[-1]}" for step in steps[1:])]
+    values = [step.error_pct for step in steps]
+    ax.bar(range(len(steps)), values, color="tab:blue")
+    for k, value in enumerate(values):
+        ax.annotate(_num(value, ".3g"), (k, value), ha="center", va="bottom", fontsize=9)
+    ax.set_xticks(range(len(steps)), labels)
+    ax.set(title="error staircase", ylabel="held-out error (%)")
+    ax.grid(alpha=0.3, axis="y")
+    return figure
+
+
+def _reconstruction_figure(diagnosis: Diagnosis) -> Figure:
+    window = _zoom(diagnosis)
+    time = diagnosis.time[window]
+    figure = Figure(figsize=(10, 4), layout="constrained")
+    ax = figure.subplots()
+    _plot(ax, time, diagnosis.tc1[window], color="grey", linewidth=0.6, label="tc1 measured")
+    _plot(ax, time, diagnosis.tc2[window], color="silver", linewidth=0.6, label="tc2 measured")
+    if diagnosis.ref is not None:
+        _plot(ax, time, diagnosis.ref[window], color="black", linewidth=1.6, label="reference")
+    _plot(ax, time, diagnosis.final.gas1[window], linewidth=0.8, label="gas from tc1")
+    _plot(ax, time, diagnosis.final.gas2[window], linewidth=0.8, label="gas from tc2")
+    ax.set(title=f"gas temperature, {_label(diagnosis.final)}", xlabel="time (s)")
+    ax.set_ylabel("temperature (°C)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return figure
+
+
+# -- sections -----------------------------------------------------------------------------------
+
+
+def _winner_text(diagnosis: Diagnosis) -> str:
+    chosen = [s for s in diagnosis.suspects if s.effect == diagnosis.verdict]
+    if chosen:
+        return f"Why {chosen[0].effect}: {chosen[0].signature}"
+    if diagnosis.suspects:
+        best = diagnosis.suspects[0]
+        return (
+            "No effect lowered the held-out error significantly; the best suspect was "
+            f"{best.effect}: {best.signature}"
+        )
+    return "No effect was tried."
+
+
+def _summary(diagnosis: Diagnosis) -> str:
+    d = diagnosis
+    fits = [("base", d.base), (f"final ({_label(d.final)})", d.final)]
+    return _section(
+        "Summary",
+        f"<p>Source: {escape(d.source)}; {d.time.size} samples at {_num(1 / d.dt, '.6g')} Hz; "
+        f"tc{d.slow} (the slower) is simulated from tc{3 - d.slow}. Noise: sigma1 = "
+        f"{escape(_num(d.sigma1, '.3g'))} °C, sigma2 = {escape(_num(d.sigma2, '.3g'))} °C "
+        f"(phi = {escape(_num(d.phi, '.3g'))}).</p>",
+        f'<p class="verdict">Verdict: {escape(d.verdict)}</p>',
+        _table(
+            [
+                "model",
+                "tau1 (s)",
+                "tau2 (s)",
+                "held-out error (%)",
+                "raw (%)",
+                "noise floor (%)",
+                "on estimation blocks (%)",
+            ],
+            [
+                [
+                    name,
+                    f.tau1,
+                    f.tau2,
+                    f.error_pct,
+                    f.raw_error_pct,
+                    f.noise_floor_pct,
+                    f.train_error_pct,
+                ]
+                for name, f in fits
+            ],
+        ),
+        "<p>Held-out error: 100 rms(simulated − measured) / std(measured) of the slow sensor "
+        "simulated from the fast one, both low-passed at "
+        f"{escape(_num(d.eval_cutoff_hz, '.4g'))} Hz, on the validation blocks the fit never "
+        "saw, with the sensors' noise floor taken out in quadrature (0 is a perfect model); "
+        "the raw error keeps the noise in.</p>",
+        "<p>Where the base model fails:</p>",
+        _list(d.failure.findings),
+        f"<p>{escape(_winner_text(d))}</p>",
+    )
+
+
+def _comparison(diagnosis: Diagnosis) -> str:
+    return _section(
+        "Model vs measurement",
+        "<p>The slow sensor against its free-run simulation from the fast one; held-out "
+        "blocks shaded.</p>",
+        _image(_comparison_figure(diagnosis), "measured slow sensor and free-run simulations"),
+    )
+
+
+def _p_value(acf: Autocorrelation) -> str:
+    return "p < 1e-6" if acf.p_value < 1e-6 else f"p = {_num(acf.p_value, '.2g')}"
+
+
+def _residuals(diagnosis: Diagnosis) -> str:
+    acf, ccf = diagnosis.failure.acf, diagnosis.failure.ccf_input
+    return _section(
+        "Residuals",
+        f"<p>Ljung-Box Q = {escape(_num(acf.ljung_box_q, '.4g'))}, {escape(_p_value(acf))}; "
+        f"{escape(_num(100 * acf.fraction_outside, '.0f'))} "
+        "% of the autocorrelation lags lie outside the white-noise bound. The cross-correlation "
+        "bound uses Bartlett's formula for autocorrelated series; its peak is "
+        f"{escape(_num(ccf.peak, '.2f'))} at {escape(_num(1e3 * ccf.peak_lag_s, '.3g'))} ms "
+        f"({'significant' if ccf.significant else 'not significant'}).</p>",
+        _image(_residual_figure(diagnosis), "residual autocorrelation and cross-correlation"),
+    )
+
+
+def _where(diagnosis: Diagnosis) -> str:
+    candidates = diagnosis.failure.candidates
+    return _section(
+        "Where it fails",
+        _image(_where_figure(diagnosis), "error over time, tau over time, bands and levels"),
+        "<p>Zero-lag correlation of the residual with candidate signals (bound for "
+        "uncorrelated autocorrelated series):</p>",
+        _table(
+            ["signal", "correlation", "bound", "z"],
+            [[c.name, c.correlation, c.bound, c.z] for c in candidates],
+        ),
+    )
+
+
+def _suspect_rows(suspects: Sequence[Suspect]) -> list[list[object]]:
+    return [
+        [s.effect, s.error_pct, s.evidence, "yes" if s.significant else "no", s.signature]
+        for s in suspects
+    ]
+
+
+def _suspects(diagnosis: Diagnosis) -> str:
+    header = ["effect", "held-out error (%)", "evidence", "significant", "signature"]
+    parts = []
+    for number, suspects in enumerate(diagnosis.rounds, start=1):
+        parts.append(f"<h3>Round {number} (best first)</h3>")
+        parts.append(_table(header, _suspect_rows(suspects)))
+    if not parts:
+        parts.append("<p>No effect was tried.</p>")
+    return _section("Suspects", *parts)
+
+
+def _staircase(diagnosis: Diagnosis) -> str:
+    steps = diagnosis.steps
+    return _section(
+        "Error staircase",
+        _image(_staircase_figure(steps), "held-out error of each model of the staircase"),
+        _table(
+            ["model", "tau1 (s)", "tau2 (s)", "held-out error (%)", "raw (%)", "parameters"],
+            [[_label(s), s.tau1, s.tau2, s.error_pct, s.raw_error_pct, s.n_params] for s in steps],
+        ),
+    )
+
+
+def _reconstructions(diagnosis: Diagnosis) -> str:
+    parts = [_image(_reconstruction_figure(diagnosis), "reconstructed gas temperature (zoom)")]
+    if diagnosis.ref_error_pct:
+        parts.append("<p>Reference against each reconstruction, rms in % of its spread:</p>")
+        parts.append(
+            _table(
+                ["reconstruction", "error (%)"],
+                [[name, float(value)] for name, value in diagnosis.ref_error_pct.items()],
+            )
+        )
+    return _section("Reconstructions", *parts)
+
+
+def _html(diagnosis: Diagnosis) -> str:
+    title = escape(f"tcomp diagnosis: {diagnosis.source}")
+    body = "\n".join(
+        (
+            _summary(diagnosis),
+            _comparison(diagnosis),
+            _residuals(diagnosis),
+            _where(diagnosis),
+            _suspects(diagnosis),
+            _staircase(diagnosis),
+            _reconstructions(diagnosis),
+            _section("Notes", _list(diagnosis.notes)),
+        )
+    )
+    return (
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        f"<title>{title}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
+        f"<h1>{title}</h1>\n{body}\n</body>\n</html>\n"
+    )
+
+
+def write_report(diagnosis: Diagnosis, directory: str | Path) -> Path:
+    """Write the diagnosis as one self-contained ``index.html``.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        What :func:`tcomp_core.diagnose.diagnose` found.
+    directory : str or Path
+        Where to write (created if missing).
+
+    Returns
+    -------
+    Path
+        The path of ``index.html``. Sections: summary, model vs measurement, residuals, where
+        it fails, suspects, error staircase, reconstructions, notes.
+    """
+    target = Path(directory)
+    target.mkdir(parents=True, exist_ok=True)
+    path = target / "index.html"
+    path.write_text(_html(diagnosis), encoding="utf-8")
+    return path

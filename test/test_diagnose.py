@@ -1,0 +1,151 @@
+"""``diagnose`` on data with a hidden effect: the verdict, the error fall and τ.
+
+The data come from :mod:`tcomp_core.simulate_effects`, a finely sampled continuous-time
+simulation of each effect, independent of the difference equations the fit uses. Each effect is
+tried on two records differing in gas signal, seed, τ pair and noise level K; records without an
+effect must give ``none``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from tcomp_core.cli import main
+from tcomp_core.diagnose import diagnose, diagnosis_to_dict, fit_effects
+from tcomp_core.effects import EFFECT_NAMES
+from tcomp_core.io import Record, write_csv
+from tcomp_core.simulate_effects import simulate_effect
+
+PAPER = (0.0238, 0.1168)
+FAST = (0.015, 0.06)
+
+CASES = [
+    ("conduction", "multisine", FAST, 1.0, 1),
+    ("conduction", "exhaust", PAPER, 2.0, 2),
+    ("radiation", "multisine", PAPER, 1.0, 3),
+    ("radiation", "ramp", FAST, 1.0, 4),
+    ("velocity", "multisine", PAPER, 1.0, 5),
+    ("velocity", "exhaust", FAST, 2.0, 6),
+    ("delay", "multisine", PAPER, 1.0, 7),
+    ("delay", "ramp", FAST, 1.0, 8),
+    ("calibration", "multisine", FAST, 2.0, 9),
+    ("calibration", "exhaust", PAPER, 1.0, 10),
+    ("noise_ratio", "multisine", PAPER, 2.0, 11),
+    ("noise_ratio", "ramp", FAST, 2.0, 12),
+]
+CLEAN = [
+    ("multisine", PAPER, 1.0, 13),
+    ("ramp", FAST, 2.0, 14),
+    ("exhaust", PAPER, 1.0, 15),
+]
+
+
+def _record(effect, kind, taus, noise, seed):
+    sim = simulate_effect(
+        effect, kind, tau1=taus[0], tau2=taus[1], duration=10.0, noise_percent=noise, seed=seed
+    )
+    record = Record(
+        time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=f"{effect}/{kind}", dt=sim.dt
+    )
+    return record, sim
+
+
+@pytest.mark.parametrize(("effect", "kind", "taus", "noise", "seed"), CASES)
+def test_diagnose_names_the_hidden_effect_and_the_error_falls(effect, kind, taus, noise, seed):
+    record, sim = _record(effect, kind, taus, noise, seed)
+    found = diagnose(record, max_effects=1)
+    assert found.verdict == effect, [
+        (s.effect, s.error_pct, s.significant) for s in found.suspects
+    ]
+    assert found.suspects[0].effect == effect
+    assert found.base.error_pct >= 2.0 * found.final.error_pct
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
+    assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
+    assert found.final.effects == (effect,)
+
+
+@pytest.mark.parametrize(("kind", "taus", "noise", "seed"), CLEAN)
+def test_diagnose_raises_no_false_alarm_without_an_effect(kind, taus, noise, seed):
+    record, sim = _record(None, kind, taus, noise, seed)
+    found = diagnose(record, max_effects=1)
+    assert found.verdict == "none", [
+        (s.effect, s.raw_error_pct if s.fit else None, s.significant) for s in found.suspects
+    ]
+    assert found.final.effects == () and found.final is found.steps[0]
+    assert found.base.tau1 == pytest.approx(sim.tau1, rel=0.05)
+    assert found.base.tau2 == pytest.approx(sim.tau2, rel=0.05)
+    assert len(found.suspects) == len(EFFECT_NAMES)
+    assert not any(suspect.significant for suspect in found.suspects)
+
+
+def test_the_staircase_adds_a_second_effect_when_two_are_hidden():
+    sim = simulate_effect("delay", "multisine", duration=10.0, noise_percent=1.0, seed=21)
+    # A calibration error on top of the delay: tc2 reads 3 % high and 4 degC low.
+    tc2 = 1.03 * sim.tc2 - 4.0
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=tc2, ref=sim.gas, source="two", dt=sim.dt)
+    found = diagnose(record)
+    effects = set(found.final.effects)
+    assert {"delay", "calibration"} <= effects
+    errors = [step.error_pct for step in found.steps]
+    assert all(later < earlier for earlier, later in itertools.pairwise(errors))
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
+
+
+def test_fit_effects_scores_each_step_in_the_order_given():
+    record, _ = _record("radiation", "multisine", PAPER, 1.0, 30)
+    fitted = fit_effects(record, ["radiation"])
+    assert [step.effects for step in fitted.steps] == [(), ("radiation",)]
+    assert fitted.steps[1].error_pct < fitted.steps[0].error_pct / 2
+    with pytest.raises(ValueError, match="unknown effect 'smoke'"):
+        fit_effects(record, ["smoke"])
+
+
+def test_diagnosis_json_holds_the_documented_keys():
+    record, _ = _record("calibration", "multisine", PAPER, 1.0, 31)
+    document = json.loads(json.dumps(diagnosis_to_dict(diagnose(record, max_effects=1))))
+    assert set(document["base"]) >= {"tau1", "tau2", "error_pct"}
+    assert set(document["final"]) >= {"effects", "tau1", "tau2", "error_pct"}
+    assert document["verdict"] == "calibration"
+    assert next(s["effect"] for s in document["suspects"]) == "calibration"
+    assert {"effect", "error_pct", "evidence"} <= set(document["suspects"][0])
+    assert document["where"]["findings"]
+
+
+def test_cli_diagnose_writes_json_and_report(tmp_path, capsys):
+    record, _ = _record("delay", "multisine", PAPER, 1.0, 32)
+    data = tmp_path / "delay.csv"
+    write_csv(data, record.time, record.tc1, record.tc2, record.ref)
+    out_json, out_report = tmp_path / "d.json", tmp_path / "report"
+    status = main(
+        [
+            "diagnose",
+            str(data),
+            "--json",
+            str(out_json),
+            "--report",
+            str(out_report),
+            "--max-effects",
+            "1",
+        ]
+    )
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "verdict: delay" in printed and "error staircase" in printed
+    document = json.loads(out_json.read_text())
+    assert document["verdict"] == "delay"
+    html = (out_report / "index.html").read_text()
+    assert "delay" in html and "data:image/png;base64," in html
+    assert np.isfinite(document["final"]["error_pct"])
+
+
+def test_cli_fit_refuses_an_unknown_effect(tmp_path, capsys):
+    record, _ = _record(None, "multisine", PAPER, 1.0, 33)
+    data = tmp_path / "clean.csv"
+    write_csv(data, record.time, record.tc1, record.tc2)
+    with pytest.raises(SystemExit):
+        main(["fit", str(data), "--effects", "radiation,smoke"])
+    assert "unknown effect 'smoke'" in capsys.readouterr().err
