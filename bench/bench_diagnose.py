@@ -129,7 +129,7 @@ def main() -> None:
     if args.quick:
         rows = run_grid(("multisine",), (1.0,), (1,))
     else:
-        rows = run_grid(("multisine", "ramp", "exhaust"), (1.0, 2.0), (1, 2))
+        rows = run_grid(("multisine", "ramp", "exhaust"), (1.0, 2.0), (1,))
     print_confusion(rows)
     time_40k()
 

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..effects import EFFECT_NAMES, Model, make_context
+from ..effects.chain import fractional_shift
 from ..errors import EstimationError, TcompError
 from ..estimators.beta import estimate_beta_from_scatter
 from ..estimators.scatter import beta_scatter
@@ -117,7 +118,10 @@ def _reference_errors(evaluator: Evaluator, fit: ModelFit) -> dict[str, float]:
     weights = [1.0 / (s * (t / data.dt) ** 2) for s, t in zip(sigma2, taus, strict=True)]
     fused = (weights[0] * fit.gas1 + weights[1] * fit.gas2) / sum(weights)
     keep = evaluator.scored_mask(Model(fit.effects, fit.params))
-    reference = evaluator.lowpass(data.ref)
+    # gas[k] is the gas held over [t_k, t_k+1): compare it with the reference half a sample on.
+    shifted, _ = fractional_shift(data.ref, 0.5)
+    keep &= np.isfinite(shifted)
+    reference = evaluator.lowpass(np.where(np.isfinite(shifted), shifted, data.ref))
     return {
         name: heldout_error_percent(reference, evaluator.lowpass(gas), keep)
         for name, gas in (("gas1", fit.gas1), ("gas2", fit.gas2), ("fused", fused))

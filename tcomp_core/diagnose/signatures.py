@@ -15,7 +15,6 @@ hold in every round of the staircase.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
@@ -23,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..effects import Model
 from .heldout import Evaluator
+from .residuals import band_errors
 from .result import ModelFit
 
 __all__ = ["signature"]
@@ -39,14 +39,23 @@ def _residual(evaluator: Evaluator, fit: ModelFit) -> tuple[NDArray, NDArray, ND
 
 def _conduction(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     p = fit.params
-    corner = 1.0 / (2.0 * math.pi * p["tau_p"])
-    residual = evaluator.lowpass(evaluator.readings[evaluator.slow - 1] - current.predicted)
-    spectrum = np.abs(np.fft.rfft(residual - residual.mean())) ** 2
-    freqs = np.fft.rfftfreq(residual.size, evaluator.data.dt)
-    share = float(spectrum[freqs <= 3.0 * corner].sum() / spectrum.sum())
+    measured = evaluator.lowpass(evaluator.readings[evaluator.slow - 1])
+    bands = band_errors(measured, evaluator.lowpass(current.predicted), evaluator.data.dt)
+    ratio = bands.residual_to_signal
+    # Bands where the slow sensor carries signal: the residual's share of it, low vs high.
+    carrying = np.flatnonzero(np.isfinite(ratio) & (bands.coherence > 0.5))
+    if carrying.size >= 2:
+        low, high = carrying[0], carrying[-1]
+        edges = bands.edges_hz
+        evidence = (
+            f"relative to the signal the residual is {ratio[low] / max(ratio[high], 1e-12):.3g} "
+            f"times stronger at {edges[low]:.2g}–{edges[low + 1]:.2g} Hz than at "
+            f"{edges[high]:.2g}–{edges[high + 1]:.2g} Hz, the mark of a slow mode"
+        )
+    else:
+        evidence = "the residual is slow, the mark of a slow mode"
     return (
-        f"{100 * share:.0f} % of the residual power lies below {3 * corner:.2g} Hz, a slow "
-        f"mode; refit: kappa1 = {p['kappa1']:.3g}, kappa2 = {p['kappa2']:.3g}, "
+        f"{evidence}; refit: kappa1 = {p['kappa1']:.3g}, kappa2 = {p['kappa2']:.3g}, "
         f"tau_p = {p['tau_p']:.3g} s"
     )
 
