@@ -6,9 +6,12 @@ and in at least :data:`MIN_BLOCK_SHARE` of the validation blocks: one lucky bloc
 it, and the held-out data, never fitted, guard against an effect that only adds freedom.
 Suspects are ranked by held-out error; when two are within
 :data:`TIE_TOLERANCE` of each other the one with fewer parameters ranks first, except for
-radiation against calibration, which both explain a level-dependent offset between the
-sensors: there the residual's curvature against the level decides (T⁴ bends it, a gain and
-offset do not; :data:`CURVATURE_T`).
+radiation against calibration. Linearised, radiation is a relative gain and offset of the two
+sensors (with τ shortened by 1 + ρ), so both explain a level-dependent offset about equally
+well unless the noise is low. Radiation ranks first when the residual curves against the level
+(T⁴ bends it, a gain and offset do not; :data:`CURVATURE_T`) or when the physics fits: a hot
+record, a wall cooler than the gas and the thicker (slower) wire radiating relatively more.
+Otherwise calibration, the simpler model, does.
 """
 
 from __future__ import annotations
@@ -38,6 +41,11 @@ MAX_EFFECTS = 3
 #: |t| of the residual's curvature against the level above which radiation beats a tied
 #: calibration.
 CURVATURE_T = 3.0
+#: Mean temperature below which radiation is not preferred to a tied calibration, degrees C
+#: (at 250 °C a fine wire's radiative conductance is ~1 % of its convective one).
+RADIATION_MIN_LEVEL_C = 250.0
+#: Least radiative/convective conductance of the slower sensor that counts as radiation.
+RADIATION_MIN_RHO = 0.01
 
 
 def is_significant(current: ModelFit, candidate: ModelFit) -> bool:
@@ -109,22 +117,48 @@ def next_round(
 def _radiation_or_calibration(
     ranked: list[Suspect], evaluator: Evaluator, current: ModelFit
 ) -> list[Suspect]:
-    """Order a near-tie of radiation and calibration at the top by the residual's curvature."""
+    """Order a near-tie of radiation and calibration at the top (see the module docstring)."""
     if len(ranked) < 2 or {ranked[0].effect, ranked[1].effect} != {"radiation", "calibration"}:
         return ranked
     first, second = ranked[0], ranked[1]
     if second.error_pct > (1.0 + TIE_TOLERANCE) * first.error_pct:
         return ranked
+    radiation, calibration = (first, second) if first.effect == "radiation" else (second, first)
+    top = [radiation, calibration]
+    if not (_bent(evaluator, current) or _radiation_plausible(evaluator, radiation)):
+        top.reverse()
+    return top + ranked[2:]
+
+
+def _bent(evaluator: Evaluator, current: ModelFit) -> bool:
+    """Whether the residual curves against the level (T⁴ bends it; gain and offset do not)."""
     readings = evaluator.readings
     measured = readings[evaluator.slow - 1]
     residual = evaluator.lowpass(measured - current.predicted)
     mask = evaluator.data.validation & evaluator.scored_mask(
         Model(current.effects, current.params)
     )
-    bent = abs(level_errors(residual[mask], measured[mask]).curvature_t) > CURVATURE_T
-    radiation, calibration = (first, second) if first.effect == "radiation" else (second, first)
-    top = [radiation, calibration] if bent else [calibration, radiation]
-    return top + ranked[2:]
+    return abs(level_errors(residual[mask], measured[mask]).curvature_t) > CURVATURE_T
+
+
+def _radiation_plausible(evaluator: Evaluator, radiation: Suspect) -> bool:
+    """Whether a hot record and the radiation fit point to radiation rather than calibration.
+
+    To first order radiation *is* a relative gain and offset (and τ shortened by 1 + ρ), so at
+    moderate noise both fit alike. Physics then decides: radiation needs a hot record
+    (:data:`RADIATION_MIN_LEVEL_C`), a wall cooler than the gas, and the slower (thicker) wire
+    radiating relatively more (r ∝ d^½), visibly (ρ ≥ :data:`RADIATION_MIN_RHO`).
+    """
+    if radiation.fit is None:
+        return False
+    p = radiation.fit.params
+    slow, fast = evaluator.slow, 3 - evaluator.slow
+    return bool(
+        evaluator.context.level_mean_c >= RADIATION_MIN_LEVEL_C
+        and p["wall_c"] < evaluator.context.level_mean_c
+        and p[f"rho{slow}"] >= p[f"rho{fast}"]
+        and p[f"rho{slow}"] >= RADIATION_MIN_RHO
+    )
 
 
 def pick(suspects: Sequence[Suspect]) -> Suspect | None:
