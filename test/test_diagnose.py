@@ -82,6 +82,25 @@ def test_diagnose_raises_no_false_alarm_without_an_effect(kind, taus, noise, see
     assert not any(suspect.significant for suspect in found.suspects)
 
 
+def test_a_5_khz_record_is_decimated_and_diagnosed():
+    sim = simulate_effect(
+        "conduction",
+        "multisine",
+        dt=0.0002,
+        duration=6.0,
+        noise_percent=1.0,
+        seed=40,
+        oversample=4,
+    )
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="5k", dt=sim.dt)
+    found = diagnose(record, max_effects=1)
+    assert found.dt == pytest.approx(9 * sim.dt)  # 555 Hz: 5x the 107 Hz the signals carry
+    assert any("decimated by 9" in note for note in found.notes)
+    assert found.verdict == "conduction"
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
+    assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
+
+
 def test_the_staircase_adds_a_second_effect_when_two_are_hidden():
     sim = simulate_effect("delay", "multisine", duration=10.0, noise_percent=1.0, seed=21)
     # A calibration error on top of the delay: tc2 reads 3 % high and 4 degC low.
