@@ -4,6 +4,8 @@ An effect is *significant* when its refit lowers the raw held-out error (noise i
 that chance near the noise floor cannot pass) by at least :data:`MIN_RELATIVE_FALL` overall
 and in at least :data:`MIN_BLOCK_SHARE` of the validation blocks: one lucky block cannot carry
 it, and the held-out data, never fitted, guard against an effect that only adds freedom.
+Unequal noise (``noise_ratio``) is measured rather than fitted, so a clearly unequal noise
+ratio counts by itself when the refit does no harm (:func:`is_significant`).
 Suspects are ranked by held-out error; when two are within
 :data:`TIE_TOLERANCE` of each other the one with fewer parameters ranks first, except for
 radiation against calibration. Linearised, radiation is a relative gain and offset of the two
@@ -36,6 +38,10 @@ MIN_RELATIVE_FALL = 0.2
 MIN_BLOCK_SHARE = 0.7
 #: Suspects within this relative error of each other count as a tie.
 TIE_TOLERANCE = 0.03
+#: Noise variance ratio φ̂ beyond which (or below its inverse) unequal noise is a finding by
+#: itself: the spectral estimate of φ is good to ~10 % on clean records, but a fast sensor whose
+#: signal reaches the top of the band (sharp exhaust pulses) reads up to ~1.7 with equal noise.
+NOISE_RATIO_FACTOR = 2.0
 #: Most effects the staircase adds.
 MAX_EFFECTS = 3
 #: |t| of the residual's curvature against the level above which radiation beats a tied
@@ -48,10 +54,23 @@ RADIATION_MIN_LEVEL_C = 250.0
 RADIATION_MIN_RHO = 0.01
 
 
-def is_significant(current: ModelFit, candidate: ModelFit) -> bool:
-    """Whether ``candidate`` lowers the held-out error of ``current`` significantly."""
+def is_significant(
+    current: ModelFit, candidate: ModelFit, effect: str = "", phi_hat: float = 1.0
+) -> bool:
+    """Whether ``candidate`` lowers the held-out error of ``current`` significantly.
+
+    ``noise_ratio`` is measured, not fitted (φ from the spectra), so it cannot overfit: it is
+    also significant when φ̂ lies outside [1/:data:`NOISE_RATIO_FACTOR`,
+    :data:`NOISE_RATIO_FACTOR`] and the refit does not raise the held-out error.
+    """
     if not (math.isfinite(candidate.raw_error_pct) and math.isfinite(current.raw_error_pct)):
         return False
+    if (
+        effect == "noise_ratio"
+        and abs(math.log(phi_hat)) > math.log(NOISE_RATIO_FACTOR)
+        and candidate.raw_error_pct <= (1.0 + TIE_TOLERANCE) * current.raw_error_pct
+    ):
+        return True
     if candidate.raw_error_pct > (1.0 - MIN_RELATIVE_FALL) * current.raw_error_pct:
         return False
     before, after = current.block_errors_pct, candidate.block_errors_pct
@@ -107,7 +126,7 @@ def next_round(
                 error_pct=fit.error_pct,
                 evidence=evidence,
                 signature=signature(name, evaluator, current, fit),
-                significant=is_significant(current, fit),
+                significant=is_significant(current, fit, name, evaluator.data.phi_hat),
                 fit=fit,
             )
         )
