@@ -37,6 +37,7 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/bench_scatter_vs_svd.py
+	$(PY) bench/bench_accuracy.py
 	$(PY) bench/bench_diagnose.py
 	$(PY) bench/bench_realtime.py
 

@@ -19,7 +19,8 @@ import numpy as np
 from . import __version__
 from .cli_diagnose import add_diagnose_commands
 from .errors import TcompError
-from .estimators import METHODS, Estimate, estimate
+from .estimators import METHODS, PHI_METHODS, Estimate, estimate
+from .estimators.mleiv import phi_from_data
 from .io import DEFAULT_TOPICS, Record, read_record, write_series
 from .metrics import reconstruction_error_percent
 from .reconstruct import COMBINATIONS, reconstruct
@@ -33,6 +34,11 @@ def _positive_float(text: str) -> float:
     if not (np.isfinite(value) and value > 0.0):
         raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
     return value
+
+
+def _phi(text: str) -> float | None:
+    """``--phi``: a ratio > 0, or ``auto`` (None: measured from the data)."""
+    return None if text == "auto" else _positive_float(text)
 
 
 def _add_data_arguments(parser: argparse.ArgumentParser) -> None:
@@ -63,9 +69,10 @@ def _add_estimator_arguments(parser: argparse.ArgumentParser, allow_all: bool = 
     )
     parser.add_argument(
         "--phi",
-        type=_positive_float,
+        type=_phi,
         default=1.0,
-        help="noise variance ratio sigma1^2/sigma2^2 for beta-gtls (default 1)",
+        help="noise variance ratio sigma1^2/sigma2^2 for beta-gtls and ml-eiv (default 1); "
+        "'auto' measures it from the top of the two spectra",
     )
     parser.add_argument(
         "--alpha",
@@ -207,7 +214,7 @@ def _estimate(record: Record, args: argparse.Namespace, method: str) -> Estimate
         record.tc2,
         record.dt,
         method,  # type: ignore[arg-type]
-        phi=args.phi if method == "beta-gtls" else 1.0,
+        phi=args.phi if method in PHI_METHODS else 1.0,
         alpha=args.alpha if method == "tdr-kee" else None,
         prefilter_hz=args.prefilter_hz,
     )
@@ -298,7 +305,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         record.dt,
         tau1,
         tau2,
-        phi=args.phi,
+        phi=args.phi if args.phi is not None else phi_from_data(record.tc1, record.tc2, record.dt),
         combine=args.combine,
         postfilter_hz=args.postfilter_hz,
         time=record.time,
@@ -343,7 +350,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         record.dt,
         args.method,
         bandwidths_hz=args.bandwidths,
-        phi=args.phi if args.method == "beta-gtls" else 1.0,
+        phi=args.phi if args.method in PHI_METHODS else 1.0,
         alpha=args.alpha if args.method == "tdr-kee" else None,
     )
     if args.json:

@@ -15,7 +15,6 @@ from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 from .models import FirstOrderLag
 from .validation import check_sample_interval
@@ -57,7 +56,10 @@ def periodic_ramp(
 
     Rises linearly from ``mean - amplitude`` to ``mean + amplitude`` over each period, then drops.
     """
-    return mean + amplitude * sps.sawtooth(2.0 * np.pi * freq_hz * t)
+    # Cycles are counted with a tiny lead: where f·t is a whole number the rounding of f·t would
+    # put the jump on either side of the sample at random, a spurious broadband jitter.
+    cycles = freq_hz * np.asarray(t, dtype=np.float64) + 1e-9
+    return mean + amplitude * (2.0 * np.mod(cycles, 1.0) - 1.0)
 
 
 def multisine(

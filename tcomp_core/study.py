@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import TcompError
-from .estimators import METHODS, estimate
+from .estimators import METHODS, PAPER_METHODS, estimate
 from .metrics import tau_error_percent
 from .simulate import PAPER_DT, PAPER_DURATION, PAPER_TAU1, PAPER_TAU2, simulate_pair
 
@@ -38,7 +38,7 @@ class StudyConfig:
     signals: tuple[str, ...] = ("sinusoid", "ramp")
     noise_levels: tuple[float, ...] = (0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
     runs: int = 100
-    methods: tuple[str, ...] = METHODS
+    methods: tuple[str, ...] = PAPER_METHODS
     tau1: float = PAPER_TAU1
     tau2: float = PAPER_TAU2
     dt: float = PAPER_DT

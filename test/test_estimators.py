@@ -258,7 +258,8 @@ def test_prefilter_is_applied_to_both_signals(method):
     assert filtered.tau2 == pytest.approx(manual.tau2, rel=1e-12)
     assert filtered.prefilter_hz == 40.0
     assert manual.prefilter_hz is None
-    assert rel(filtered.tau1, raw.tau1) > 1e-4
+    # ml-eiv weights both signals by their own noise, so a shared filter barely moves it.
+    assert rel(filtered.tau1, raw.tau1) > (1e-6 if method == "ml-eiv" else 1e-4)
 
 
 @pytest.mark.parametrize("bad_hz", [0.0, -5.0, 250.0, 300.0, math.nan])
