@@ -6,6 +6,13 @@ core's :class:`~tcomp_core.online.OnlineCompensator`, re-estimates τ1 and τ2 o
 publishes ``gas_temperature`` (one message per reconstructed pair, stamped with that pair's
 sample time) and ``/diagnostics`` once a second.
 
+Every ``diagnosis_period_s`` (and at once when the parameter ``effects`` changes) the longest
+gap-free stretch of the window is diagnosed in a worker process
+(:class:`~tcomp_core.diagnose.background.BackgroundDiagnoser`): the base model plus the requested
+effects is fitted and, when the fit is poor or effects were requested, the effect the base model
+misses most is looked for. The diagnostics carry the held-out errors with and without the
+effects and the top suspect; the published reconstruction stays first-order.
+
 Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
 (:mod:`~tcomp_ros.temperature_cdr`, falling back to rclpy's deserializer for other layouts), and
 the callbacks only append to an inbox; a 5 ms timer drains it in batches and publishes serialized
@@ -19,6 +26,7 @@ import sys
 import time
 from collections.abc import Sequence
 from functools import partial
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -35,11 +43,13 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Temperature
 
+from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
+from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
 from tcomp_core.estimators import METHODS
 from tcomp_core.online import RECONSTRUCT_FROM, EstimateStatus, OnlineCompensator, OnlineConfig
 
-from .health import SensorActivity, assess
+from .health import Level, SensorActivity, assess
 from .pairing import PairMatcher
 from .spin import spin_until_shutdown
 from .temperature_cdr import Encoder, decode
@@ -54,6 +64,14 @@ INPUT_QOS = QoSProfile(
     depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
 )
 OUTPUT_QOS = INPUT_QOS
+#: The background diagnosis needs a gap-free stretch of the window this long, seconds ...
+MIN_DIAGNOSIS_S = 2.0
+#: ... holding at least this many samples.
+MIN_DIAGNOSIS_SAMPLES = 1000
+#: A job diagnoses at most the newest this many seconds of it (its cost grows with the length).
+MAX_DIAGNOSIS_S = 60.0
+#: Shortest period of the background diagnosis, seconds (a job takes seconds anyway).
+MIN_DIAGNOSIS_PERIOD_S = 1.0
 
 
 def _float_range(low: float, high: float) -> list[FloatingPointRange]:
@@ -148,6 +166,24 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
         ),
     ),
     "frame_id": ("", _descriptor("frame_id of gas_temperature ('' = that of tc1)")),
+    "effects": (
+        "",
+        _descriptor(
+            "effects the background diagnosis adds to the first-order model, comma-separated "
+            "('' = none); they change the diagnosis and the error it reports, not the "
+            "published gas_temperature, which stays first-order",
+            additional_constraints=f"names from {', '.join(EFFECT_NAMES)}, each at most once",
+        ),
+    ),
+    "diagnosis_period_s": (
+        10.0,
+        _descriptor(
+            "period of the background diagnosis of the window, s (0 = only when effects is "
+            "set); one job at a time, each taking seconds in a worker process",
+            floating_point_range=_float_range(0.0, 3600),
+            additional_constraints=f"0 or >= {MIN_DIAGNOSIS_PERIOD_S:g}",
+        ),
+    ),
 }
 
 #: Parameters that configure the numerical engine (tcomp_core.online.OnlineConfig).
@@ -181,6 +217,7 @@ class CompensatorNode(Node):
             self.declare_parameter(name, default, descriptor)
         self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
         self._engine = OnlineCompensator(self._engine_config(self._values))
+        self._effects = self._diagnosis_effects(self._values)
         self._matcher = self._new_matcher(self._values)
         self._inbox: list[list[tuple[int, float]]] = [[], []]
         self._sensors = [SensorActivity("tc1"), SensorActivity("tc2")]
@@ -193,6 +230,13 @@ class CompensatorNode(Node):
         self._engine_errors = 0
         self._latency = LatencyHistogram()
         self._status: EstimateStatus | None = None
+        self._diagnoser = BackgroundDiagnoser()
+        self._diagnosis: dict[str, Any] = {}  # the latest successful diagnosis
+        self._diagnosis_error = ""
+        self._diagnosis_at = math.nan  # when the data of that diagnosis were taken (monotonic)
+        self._submitted_at = math.nan
+        # Start a job as soon as the window is long enough and the worker free.
+        self._diagnosis_wanted = self._values["diagnosis_period_s"] > 0.0 or bool(self._effects)
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._gas_pub = self.create_publisher(Temperature, "gas_temperature", OUTPUT_QOS)
@@ -207,6 +251,13 @@ class CompensatorNode(Node):
             self._values["update_period_s"], self.update_estimate
         )
         self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
+        self._diagnosis_timer = None
+        self._start_diagnosis_timer()
+
+    def destroy_node(self) -> None:
+        """Stop the diagnosis worker (abandoning a running job), then destroy the node."""
+        self._diagnoser.close()
+        super().destroy_node()
 
     # -- parameters --------------------------------------------------------------------------
     @staticmethod
@@ -220,12 +271,34 @@ class CompensatorNode(Node):
             queue_size=int(values["queue_size"]),
         )
 
+    @staticmethod
+    def _diagnosis_effects(values: dict[str, object]) -> tuple[str, ...]:
+        """The requested effects; raises ValueError on a bad name or diagnosis period."""
+        period = float(values["diagnosis_period_s"])
+        if 0.0 < period < MIN_DIAGNOSIS_PERIOD_S:
+            raise ValueError(
+                f"diagnosis_period_s={period!r} must be 0 (no periodic diagnosis) or "
+                f">= {MIN_DIAGNOSIS_PERIOD_S} s"
+            )
+        return parse_effects(str(values["effects"]))
+
+    def _start_diagnosis_timer(self) -> None:
+        """(Re)create the timer of the periodic diagnosis; none when the period is 0."""
+        if self._diagnosis_timer is not None:
+            self._diagnosis_timer.cancel()
+            self.destroy_timer(self._diagnosis_timer)
+            self._diagnosis_timer = None
+        period = float(self._values["diagnosis_period_s"])
+        if period > 0.0:
+            self._diagnosis_timer = self.create_timer(period, self.start_diagnosis)
+
     def _on_set_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
         """Validate a parameter change as a whole; apply it only when every value is sound."""
         values = dict(self._values)
         values.update({parameter.name: parameter.value for parameter in parameters})
         try:
             config = self._engine_config(values)
+            effects = self._diagnosis_effects(values)
         except (ValueError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         changed = {name for name in values if values[name] != self._values[name]}
@@ -240,6 +313,12 @@ class CompensatorNode(Node):
             self._estimate_timer = self.create_timer(
                 float(values["update_period_s"]), self.update_estimate
             )
+        if "diagnosis_period_s" in changed:
+            self._start_diagnosis_timer()
+        if effects != self._effects:
+            self._effects = effects
+            self._diagnosis_wanted = True
+            self.start_diagnosis()
         if changed:
             self.get_logger().info(
                 "parameters changed: " + ", ".join(f"{n}={values[n]!r}" for n in sorted(changed))
@@ -305,6 +384,93 @@ class CompensatorNode(Node):
         if status.accepted:
             self._accepted_at = time.monotonic()
 
+    # -- background diagnosis ----------------------------------------------------------------
+    def _diagnosis_segment(self) -> np.ndarray | None:
+        """The window's longest gap-free stretch, shape (n, 2), if long enough to diagnose.
+
+        At most its newest :data:`MAX_DIAGNOSIS_S` seconds; degrees C.
+        """
+        window = self._engine._window  # the engine's sliding window (no public accessor)
+        period = self._engine.period_s
+        if window is None or not period:
+            return None
+        longest = max(np.split(window.samples, window.segment_starts), key=len)
+        needed = max(MIN_DIAGNOSIS_SAMPLES, round(MIN_DIAGNOSIS_S / period))
+        if longest.shape[0] < needed:
+            return None
+        return longest[-max(needed, round(MAX_DIAGNOSIS_S / period)) :]
+
+    def start_diagnosis(self) -> bool:
+        """Diagnose the window in the background now (the timer calls this periodically).
+
+        Returns
+        -------
+        bool
+            Whether a job started; not while one runs or the window is too short.
+        """
+        self._collect_diagnosis()  # a finished job's result belongs to the previous submit
+        segment = self._diagnosis_segment()
+        if segment is None or self._diagnoser.busy:
+            return False
+        period = float(self._engine.period_s)
+        status = self._engine.last_status
+        try:
+            started = self._diagnoser.submit(
+                np.arange(segment.shape[0]) * period,
+                segment[:, 0],
+                segment[:, 1],
+                period,
+                effects=self._effects,
+                find_suspect=bool(self._effects) or bool(status and status.poor_fit),
+            )
+        except Exception as exc:  # never die for the diagnosis (e.g. no worker could start)
+            self._diagnosis_error = f"{type(exc).__name__}: {exc}"
+            self.get_logger().warning(
+                f"diagnosis not started: {self._diagnosis_error}", throttle_duration_sec=60.0
+            )
+            return False
+        if started:
+            self._submitted_at = time.monotonic()
+            self._diagnosis_wanted = False
+        return started
+
+    def _collect_diagnosis(self) -> None:
+        """Take a finished job's result, if any."""
+        result = self._diagnoser.poll()
+        if result is not None and "error" in result:
+            self._diagnosis_error = str(result["error"])
+            self.get_logger().warning(
+                f"diagnosis failed: {self._diagnosis_error}", throttle_duration_sec=60.0
+            )
+        elif result is not None:
+            self._diagnosis = result
+            self._diagnosis_error = ""
+            self._diagnosis_at = self._submitted_at
+            self.get_logger().info(
+                f"diagnosis of {result['samples']} samples in {result['seconds']:.1f} s: "
+                f"error {result['base_error_pct']:.3g} % (base), {result['error_pct']:.3g} % "
+                f"(effects: {', '.join(result['effects']) or 'none'}); top suspect "
+                f"{result['top_suspect']}"
+            )
+
+    def _diagnosis_values(self, now: float) -> dict[str, str]:
+        """Key-values of the latest diagnosis (NaN or 'none' until one is known)."""
+        result = self._diagnosis
+        # Held-out error and τ with the effects only from a job that fitted the current ones.
+        fitted = result if result.get("effects") == list(self._effects) else {}
+        return {
+            "effects": ",".join(self._effects) or "none",
+            "effects_error_pct": _fmt(fitted.get("error_pct", math.nan)),
+            "base_error_pct": _fmt(result.get("base_error_pct", math.nan)),
+            "effects_tau1_s": _fmt(fitted.get("tau1", math.nan)),
+            "effects_tau2_s": _fmt(fitted.get("tau2", math.nan)),
+            "top_suspect": str(result.get("top_suspect", "none")),
+            "top_suspect_error_pct": _fmt(result.get("top_suspect_error_pct", math.nan)),
+            "diagnosis_age_s": _fmt(now - self._diagnosis_at),
+            "diagnosis_duration_s": _fmt(result.get("seconds", math.nan)),
+            "diagnosis_error": self._diagnosis_error,
+        }
+
     # -- diagnostics -------------------------------------------------------------------------
     def health_status(self) -> DiagnosticStatus:
         """The current diagnostic status (also published once a second)."""
@@ -349,6 +515,7 @@ class CompensatorNode(Node):
             "estimate_accepted": str(bool(status and status.accepted)).lower(),
             "estimate_age_s": _fmt(now - self._accepted_at),
             "last_reason": status.reason if status else "",
+            **self._diagnosis_values(now),
             **self._latency.summary(),
         }
         health = assess(
@@ -365,16 +532,28 @@ class CompensatorNode(Node):
             max_model_error_pct=float(self._values["max_model_error_pct"]),
             values=values,
         )
+        message = health.message
+        suspect = values["top_suspect"]
+        if health.level == Level.WARN and status and status.poor_fit and suspect != "none":
+            message += f"; top suspect: {suspect}"
         return DiagnosticStatus(
             level=bytes([int(health.level)]),
             name=f"tcomp: {self.get_name()}",
-            message=health.message,
+            message=message,
             hardware_id=str(self._values["hardware_id"]),
             values=[KeyValue(key=key, value=value) for key, value in health.values.items()],
         )
 
     def publish_diagnostics(self) -> None:
-        """Publish the status on /diagnostics and start a new report period."""
+        """Publish the status on /diagnostics and start a new report period.
+
+        Also collects a finished diagnosis and starts one that was asked for while the worker
+        was busy or the window too short.
+        """
+        if self._diagnosis_wanted:
+            self.start_diagnosis()
+        else:
+            self._collect_diagnosis()
         status = self.health_status()
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()

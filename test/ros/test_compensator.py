@@ -2,6 +2,7 @@
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,10 +10,14 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Temperature
 
+from tcomp_core.io import read_record
 from tcomp_core.simulate import simulate_pair
 from tcomp_ros.compensator import CompensatorNode
 
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+BAGS = Path(__file__).resolve().parents[2] / "bags"
+#: A diagnosis takes seconds; its worker runs niced, so a loaded machine can stretch that a lot.
+DIAGNOSIS_DEADLINE_S = 120.0
 
 
 class Harness:
@@ -23,6 +28,8 @@ class Harness:
         self.spin_until = spin_until
         # Feeding pauses between steps of a test; only the silence test wants a short timeout.
         parameters.setdefault("silence_timeout_s", 60.0)
+        # The background diagnosis (a worker process) only where a test asks for it.
+        parameters.setdefault("diagnosis_period_s", 0.0)
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
         self.node = CompensatorNode(context=context, parameter_overrides=overrides)
         self.peer = context_node(context)
@@ -319,3 +326,112 @@ def test_latency_histogram_quantiles():
     histogram.new_period()
     assert histogram.summary()["latency_p50_ms"] == "nan"
     assert float(histogram.summary()["latency_p99_total_ms"]) == pytest.approx(99.1, abs=0.11)
+
+
+def test_poor_fit_names_the_suspect_and_effects_make_the_error_fall_live(harness):
+    bag = read_record(BAGS / "conduction_500hz")  # sensors conducting heat to their supports
+    # One window's worth from the start, where the sensors are at rest: the window then holds
+    # the start of the slow conduction mode.
+    count = 2000
+    h = harness(window_s=4.0, update_period_s=0.2, max_model_error_pct=5.0)
+    h.feed(stamps_for(count, bag.dt), bag.tc1[:count], bag.tc2[:count])
+    # The first-order model fits poorly (model error about 8 %) ...
+    h.next_diagnostics(lambda s: "poor fit" in s.message, timeout=10.0)
+    # ... so the diagnosis (here started by hand, not by the timer) looks for the missing effect.
+    assert h.node.start_diagnosis()
+    assert not h.node.start_diagnosis()  # one job at a time
+    status = h.next_diagnostics(
+        lambda s: values(s)["top_suspect"] != "none", timeout=DIAGNOSIS_DEADLINE_S
+    )
+    found = values(status)
+    assert found["top_suspect"] == "conduction"
+    assert level(status) == "WARN" and status.message.endswith("; top suspect: conduction")
+    assert found["effects"] == "none"
+    assert found["effects_error_pct"] == found["base_error_pct"]  # no effects: the base model
+    assert float(found["top_suspect_error_pct"]) < float(found["base_error_pct"]) / 2
+    assert found["diagnosis_error"] == ""
+    # The operator adds the effect: a job starts at once, and the error falls.
+    assert h.node.set_parameters([Parameter("effects", value="conduction")])[0].successful
+    assert h.node._diagnoser.busy
+    status = h.next_diagnostics(lambda s: values(s)["effects"] == "conduction")
+    assert values(status)["effects_error_pct"] == "nan"  # not fitted yet
+    status = h.next_diagnostics(
+        lambda s: values(s)["effects_error_pct"] != "nan", timeout=DIAGNOSIS_DEADLINE_S
+    )
+    found = values(status)
+    assert float(found["effects_error_pct"]) < float(found["base_error_pct"]) / 2
+    assert float(found["effects_tau1_s"]) == pytest.approx(0.0238, rel=0.05)
+    assert float(found["effects_tau2_s"]) == pytest.approx(0.1168, rel=0.05)
+    assert float(found["diagnosis_age_s"]) < DIAGNOSIS_DEADLINE_S
+    assert float(found["diagnosis_duration_s"]) > 0.0
+    assert int(found["published"]) > 0  # gas_temperature went on, first-order
+
+
+def test_bad_effects_are_rejected_and_leave_the_node_unchanged(harness):
+    node = harness().node
+    for bad in (
+        Parameter("effects", value="smoke"),
+        Parameter("effects", value="delay,delay"),
+        Parameter("effects", value=3),
+        Parameter("diagnosis_period_s", value=0.5),
+        Parameter("diagnosis_period_s", value=-1.0),
+    ):
+        result = node.set_parameters([bad])[0]
+        assert not result.successful, bad.value
+    results = node.set_parameters_atomically(
+        [Parameter("effects", value="conduction"), Parameter("method", value="nope")]
+    )
+    assert not results.successful
+    assert node.get_parameter("effects").value == ""
+    assert node.get_parameter("diagnosis_period_s").value == 0.0
+    assert values(node.health_status())["effects"] == "none"
+    assert node.set_parameters([Parameter("effects", value=" delay, conduction")])[0].successful
+    found = values(node.health_status())
+    assert found["effects"] == "delay,conduction"
+    assert found["effects_error_pct"] == "nan"  # no data yet: no job
+    assert not node.start_diagnosis()
+
+
+def test_bad_effects_at_start_are_refused(ros_context):
+    with pytest.raises(ValueError, match="unknown effect 'smoke'"):
+        CompensatorNode(
+            context=ros_context, parameter_overrides=[Parameter("effects", value="smoke")]
+        )
+
+
+class FailingDiagnoser:
+    """Stands in for the worker: every job fails in it, or (``start_fails``) cannot start."""
+
+    busy = False
+
+    def __init__(self):
+        self.start_fails = False
+        self.results = []
+
+    def submit(self, *args, **kwargs):
+        if self.start_fails:
+            raise RuntimeError("no worker process could start")
+        self.results.append({"error": "EstimationError: fitting the effect 'delay' failed"})
+        return True
+
+    def poll(self):
+        return self.results.pop() if self.results else None
+
+    def close(self):
+        pass
+
+
+def test_a_failed_diagnosis_is_reported_and_the_node_carries_on(harness):
+    data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=10)
+    h = harness(window_s=3.0, update_period_s=0.1, effects="delay", diagnosis_period_s=1.0)
+    h.node._diagnoser = failing = FailingDiagnoser()
+    h.feed(stamps_for(data.tc1.size, data.dt), data.tc1, data.tc2)
+    status = h.next_diagnostics(lambda s: "delay" in values(s)["diagnosis_error"])
+    assert level(status) == "OK"
+    assert values(status)["effects_error_pct"] == "nan"
+    # The timer tries again; the worker cannot start, and the node goes on estimating.
+    failing.start_fails = True
+    status = h.next_diagnostics(lambda s: "RuntimeError" in values(s)["diagnosis_error"])
+    assert values(status)["diagnosis_error"] == "RuntimeError: no worker process could start"
+    assert level(status) == "OK"
+    assert float(values(status)["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)

@@ -1,0 +1,250 @@
+"""Run the diagnosis in a worker process, away from a real-time caller's thread.
+
+A diagnosis fits many nonlinear models and takes seconds; the compensator node must keep
+publishing every sample pair within milliseconds meanwhile. :class:`BackgroundDiagnoser` hands
+one job at a time to a single worker process and lets the caller collect the result without
+blocking::
+
+    diagnoser = BackgroundDiagnoser()
+    diagnoser.submit(time, tc1, tc2, dt, effects=("conduction",), find_suspect=True)
+    ...
+    result = diagnoser.poll()  # None until the job is done, then its result once
+
+The worker is started with ``spawn``, not ``fork``: a ROS node's process runs DDS threads, and
+a forked child would inherit their locks in whatever state they were. As with any spawned
+process, the worker imports the caller's main script: a script that submits jobs must guard its
+entry point with ``if __name__ == "__main__":`` (console scripts and ``python -m`` do), else
+every job reports that the worker died.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import time as _time
+from collections.abc import Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..effects import EFFECT_NAMES
+from ..io import Record
+from .pipeline import diagnose, fit_effects
+
+__all__ = ["BackgroundDiagnoser", "parse_effects", "run_job"]
+
+#: The worker runs this much nicer than its caller: on a small machine the real-time work of
+#: the caller comes first and the diagnosis takes the spare CPU.
+WORKER_NICENESS = 10
+
+
+def parse_effects(effects: str | Sequence[str]) -> tuple[str, ...]:
+    """Check a set of effect names; a string is split at commas.
+
+    Parameters
+    ----------
+    effects : str or sequence of str
+        Names from :data:`~tcomp_core.effects.EFFECT_NAMES`, e.g. ``"conduction, delay"``.
+        ``""`` and ``"none"`` mean the base model alone.
+
+    Returns
+    -------
+    tuple of str
+        The names, stripped, in the order given.
+
+    Raises
+    ------
+    ValueError
+        On an unknown or repeated name.
+    """
+    if isinstance(effects, str):
+        effects = [] if effects.strip() in ("", "none") else effects.split(",")
+    names = tuple(name.strip() for name in effects)
+    for name in names:
+        if name not in EFFECT_NAMES:
+            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"effects {', '.join(names)} repeat an effect")
+    return names
+
+
+def _lower_priority() -> None:
+    """Initializer of the worker process: yield the CPU to the caller."""
+    os.nice(WORKER_NICENESS)
+
+
+def run_job(record: Record, effects: tuple[str, ...], find_suspect: bool) -> dict[str, Any]:
+    """Fit the base model plus ``effects`` and, if asked, look for the top suspect.
+
+    Runs in the worker process (module level, so it pickles by reference).
+
+    Parameters
+    ----------
+    record : Record
+        The data to diagnose.
+    effects : tuple of str
+        Effects to add to the base model, in order (checked by :func:`parse_effects`).
+    find_suspect : bool
+        Also run :func:`~tcomp_core.diagnose.diagnose` with one effect at most.
+
+    Returns
+    -------
+    dict
+        ``effects`` (list of str); ``base_error_pct`` and ``error_pct``: held-out model error of
+        the base model and of the base plus ``effects``, %; ``tau1``, ``tau2``: time constants
+        with ``effects``, s; ``top_suspect``: the first significant suspect of the diagnosis,
+        ``"none"`` when none is significant or none was looked for; ``top_suspect_error_pct``:
+        held-out error with it, % (NaN without one); ``samples``: samples diagnosed;
+        ``seconds``: duration of the job, s. On any error, only ``{"error": message}``.
+    """
+    started = _time.perf_counter()
+    try:
+        fitted = fit_effects(record, effects)
+        suspect = None
+        if find_suspect:
+            suspects = diagnose(record, max_effects=1).suspects
+            suspect = next((item for item in suspects if item.significant), None)
+    except Exception as exc:  # the caller must learn of any failure, not lose its worker
+        return {"error": f"{type(exc).__name__}: {exc}"}
+    return {
+        "effects": list(effects),
+        "base_error_pct": float(fitted.base.error_pct),
+        "error_pct": float(fitted.final.error_pct),
+        "tau1": float(fitted.final.tau1),
+        "tau2": float(fitted.final.tau2),
+        "top_suspect": suspect.effect if suspect else "none",
+        "top_suspect_error_pct": float(suspect.error_pct) if suspect else math.nan,
+        "samples": int(record.tc1.size),
+        "seconds": _time.perf_counter() - started,
+    }
+
+
+class BackgroundDiagnoser:
+    """One diagnosis at a time in a worker process; submit and poll never block.
+
+    The worker process is spawned on the first :meth:`submit` and kept for later jobs (its
+    start-up, mostly imports, takes a couple of seconds); it runs at a lower priority
+    (:data:`WORKER_NICENESS`). If it dies, the job reports an error and the next submit starts
+    a new one.
+    """
+
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._future: Future[dict[str, Any]] | None = None
+        self._latest: dict[str, Any] | None = None
+        self._unread = False
+        self._closed = False
+
+    @property
+    def busy(self) -> bool:
+        """Whether a job is running."""
+        return self._future is not None and not self._future.done()
+
+    @property
+    def latest(self) -> dict[str, Any] | None:
+        """The result of the last finished job seen by :meth:`poll` or :meth:`submit`, if any."""
+        return self._latest
+
+    def submit(
+        self,
+        time: ArrayLike,
+        tc1: ArrayLike,
+        tc2: ArrayLike,
+        dt: float,
+        *,
+        effects: Sequence[str],
+        find_suspect: bool,
+    ) -> bool:
+        """Start a diagnosis of a uniformly sampled record unless one is running.
+
+        Parameters
+        ----------
+        time : array_like, shape (N,)
+            Sample times, s.
+        tc1, tc2 : array_like, shape (N,)
+            Thermocouple temperatures, degrees C.
+        dt : float
+            Sample interval, s.
+        effects : sequence of str
+            Effects to add to the base model (see :func:`run_job`).
+        find_suspect : bool
+            Also look for the effect the base model misses most.
+
+        Returns
+        -------
+        bool
+            True if the job started, False if another one is still running.
+
+        Raises
+        ------
+        ValueError
+            On an unknown or repeated effect, or arrays that do not form a record
+            (:class:`~tcomp_core.errors.DataError`).
+        RuntimeError
+            After :meth:`close`.
+        """
+        if self._closed:
+            raise RuntimeError("the background diagnoser is closed")
+        effects = parse_effects(effects)
+        record = Record(
+            time=np.asarray(time, dtype=np.float64),
+            tc1=np.asarray(tc1, dtype=np.float64),
+            tc2=np.asarray(tc2, dtype=np.float64),
+            ref=None,
+            source="background diagnosis",
+            dt=float(dt),
+        )
+        if self.busy:
+            return False
+        self._collect()  # keep a finished, unread result for poll()
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(
+                max_workers=1,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_lower_priority,
+            )
+        self._future = self._pool.submit(run_job, record, effects, find_suspect)
+        return True
+
+    def poll(self) -> dict[str, Any] | None:
+        """The result of a job that finished since the last call, else None (never blocks)."""
+        self._collect()
+        if not self._unread:
+            return None
+        self._unread = False
+        return self._latest
+
+    def close(self) -> None:
+        """Stop the worker, abandoning a running job; later calls do nothing."""
+        self._closed = True
+        pool, self._pool = self._pool, None
+        self._future = None
+        if pool is None:
+            return
+        # A running diagnosis is disposable: end the worker now instead of letting the caller's
+        # exit wait seconds for it (ProcessPoolExecutor has no public way before Python 3.14).
+        # The pool's manager thread then stops at once; waiting for it keeps it from racing the
+        # interpreter's exit hook (an ignored OSError on Python 3.11).
+        for worker in list((pool._processes or {}).values()):
+            worker.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+    def _collect(self) -> None:
+        future = self._future
+        if future is None or not future.done():
+            return
+        self._future = None
+        try:
+            self._latest = future.result()
+        except BrokenProcessPool as exc:
+            self._latest = {"error": f"the diagnosis worker died: {exc}"}
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)  # its worker is gone: returns at once
+            self._pool = None
+        except Exception as exc:  # e.g. the job's data failed to pickle
+            self._latest = {"error": f"{type(exc).__name__}: {exc}"}
+        self._unread = True
