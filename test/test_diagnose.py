@@ -101,6 +101,24 @@ def test_a_5_khz_record_is_decimated_and_diagnosed():
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
 
 
+def test_conduction_is_found_in_a_window_that_does_not_start_at_rest():
+    # Cut from a running record: the slow modes start charged (fitted as mode1, mode2).
+    sim = simulate_effect("conduction", "multisine", duration=20.0, noise_percent=1.0, seed=41)
+    part = slice(sim.time.size // 4, 3 * sim.time.size // 4)
+    record = Record(
+        time=sim.time[part],
+        tc1=sim.tc1[part],
+        tc2=sim.tc2[part],
+        ref=None,
+        source="cut",
+        dt=sim.dt,
+    )
+    found = diagnose(record, max_effects=1)
+    assert found.verdict == "conduction"
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
+    assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
+
+
 def test_the_staircase_adds_a_second_effect_when_two_are_hidden():
     sim = simulate_effect("delay", "multisine", duration=10.0, noise_percent=1.0, seed=21)
     # A calibration error on top of the delay: tc2 reads 3 % high and 4 degC low.

@@ -22,7 +22,7 @@ TIME = np.arange(5000) * DT
 CHAINS = {
     "base": SensorChain(tau=0.1),
     "calibration": SensorChain(tau=0.1, gain=1.05, offset=-3.0),
-    "conduction": SensorChain(tau=0.1, kappa=0.25, tau_p=0.8),
+    "conduction": SensorChain(tau=0.1, kappa=0.25, tau_p=0.8, mode0=-3.0),
     "velocity": SensorChain(tau=0.1, factor=1.0 + 0.3 * np.sin(2 * np.pi * TIME / 4.0)),
     "radiation": SensorChain(tau=0.1, r=0.05 / (4 * 1000.0**3), wall_k=600.0),
     "delay": SensorChain(tau=0.1, delay_s=0.0071),
@@ -106,7 +106,8 @@ TRUE_PARAMS = {
 def test_fit_recovers_the_parameters_of_its_own_model(effect, rng):
     time = np.arange(6000) * DT
     gas = gas_signal("multisine", time, f_min_hz=0.2, f_max_hz=50.0, mean=650.0, amplitude=250.0)
-    truth = Model((effect,), {"tau1": 0.0238, "tau2": 0.1168, **TRUE_PARAMS[effect]})
+    neutral = {"mode1": 0.0, "mode2": 0.0} if effect == "conduction" else {}
+    truth = Model((effect,), {"tau1": 0.0238, "tau2": 0.1168, **TRUE_PARAMS[effect], **neutral})
     context = make_context(time, gas, gas, DT, tau_scale_s=0.12, sigma2=0.05)
     first, second = truth.chains(context)
     tc1 = reading_from_gas(first, gas[:-1], DT, float(gas[0]))

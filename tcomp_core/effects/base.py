@@ -131,8 +131,10 @@ class Effect:
         """``(gain, offset_c)``: the sensor reads ``gain * T + offset_c``."""
         return 1.0, 0.0
 
-    def conduction(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float] | None:
-        """``(kappa, tau_p_s)`` of conduction to the supports, or None."""
+    def conduction(
+        self, sensor: int, params: Mapping[str, float]
+    ) -> tuple[float, float, float] | None:
+        """``(kappa, tau_p_s, mode0_c)`` of conduction to the supports, or None."""
         return None
 
     def tau_factor(

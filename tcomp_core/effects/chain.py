@@ -46,6 +46,9 @@ class SensorChain:
         The sensor reads ``gain * T + offset`` (degrees C).
     kappa, tau_p : float
         Conduction ratio and slow-mode time constant (s); ``kappa = 0`` means none.
+    mode0 : float
+        Excess of the slow mode at sample 0 over its equilibrium with the first reading,
+        degrees C: a record that does not start at rest starts with the mode charged.
     factor : ndarray, shape (N,), or None
         Per-sample factor on τ (velocity), or None for a constant τ.
     r, wall_k : float
@@ -59,6 +62,7 @@ class SensorChain:
     offset: float = 0.0
     kappa: float = 0.0
     tau_p: float = 1.0
+    mode0: float = 0.0
     factor: NDArray[np.float64] | None = None
     r: float = 0.0
     wall_k: float = 0.0
@@ -81,9 +85,13 @@ class SensorChain:
         return forward, inverse
 
 
-def _steady_filter(b, a, values: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``lfilter`` started in the steady state of its first input value."""
-    zi = signal.lfilter_zi(b, a) * values[0]
+def _steady_filter(b, a, values: NDArray[np.float64], excess: float = 0.0) -> NDArray[np.float64]:
+    """``lfilter`` started in the steady state of its first input, its output ``excess`` off.
+
+    For a first-order section the state is the output's offset, so ``excess`` is added to the
+    first output and then decays with the filter's pole.
+    """
+    zi = signal.lfilter_zi(b, a) * values[0] + excess
     return signal.lfilter(b, a, values, zi=zi)[0]
 
 
@@ -183,7 +191,7 @@ def gas_from_reading(
         reading = _fill_edges(reading)
     true = (reading - chain.offset) / chain.gain
     filters = chain.support_filters(dt)
-    lagged = true if filters is None else _steady_filter(*filters[0], true)
+    lagged = true if filters is None else _steady_filter(*filters[0], true, chain.mode0)
     a = chain.poles(reading.size, dt)
     scale = 1.0 + chain.kappa
     gas = scale * (lagged[1:] - a * lagged[:-1]) / (1.0 - a)
@@ -227,7 +235,7 @@ def reading_from_gas(
     n = seen.size + 1
     a = chain.poles(n, dt)
     scale = 1.0 + chain.kappa
-    start = (initial_reading - chain.offset) / chain.gain / scale
+    start = (initial_reading - chain.offset) / chain.gain / scale + chain.mode0
     drive = seen / scale
     if chain.r == 0.0 and chain.factor is None:
         lagged = np.concatenate(
@@ -236,7 +244,9 @@ def reading_from_gas(
     else:
         lagged = _lag_loop(drive, a, start, chain.r / scale, scale, chain.wall_k**4)
     filters = chain.support_filters(dt)
-    true = lagged if filters is None else _steady_filter(*filters[1], lagged)
+    # F⁻¹ must return the initial reading from the charged mode: its output starts scale·mode0
+    # below the steady state of lagged[0].
+    true = lagged if filters is None else _steady_filter(*filters[1], lagged, -scale * chain.mode0)
     reading = chain.gain * true + chain.offset
     if chain.delay_s:
         reading = _fill_edges(fractional_shift(reading, -chain.delay_s / dt)[0])

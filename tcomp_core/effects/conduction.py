@@ -15,6 +15,10 @@ equally well. The family is resolved by physics: for wires of one material and e
 in forced convection (Nu ∝ Re^½), both κ and τ grow as d^1.5, so κ1/κ2 = τ1/τ2. A penalty
 holds the fit to that member only where the data are silent (it costs a fraction of one
 unit of the criterion per 0.1 of κ); data that do tell κ1 from κ2 override it.
+
+The slow mode remembers for several τp: a record that does not start at rest starts with the
+mode charged. Its initial excess is fitted per sensor (``mode1``, ``mode2``, degrees C), so a
+window cut from a running record fits as well as one that starts at rest.
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ class Conduction(Effect):
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         slowest = max(context.duration_s / 3.0, 4.0 * context.tau_scale_s)
+        span = 10.0 * context.level_std_c + 10.0
         return (
             ParamSpec(
                 name="kappa1",
@@ -62,6 +67,20 @@ class Conduction(Effect):
                 upper=slowest,
                 description="time constant of the slow (support) mode",
             ),
+            ParamSpec(
+                name="mode1",
+                unit="degC",
+                lower=-span,
+                upper=span,
+                description="initial excess of tc1's slow mode",
+            ),
+            ParamSpec(
+                name="mode2",
+                unit="degC",
+                lower=-span,
+                upper=span,
+                description="initial excess of tc2's slow mode",
+            ),
         )
 
     def starts(
@@ -73,13 +92,13 @@ class Conduction(Effect):
     ) -> list[dict[str, float]]:
         spec = self.specs(context)[2]
         return [
-            {"kappa1": k1, "kappa2": k2, "tau_p": float(tau_p)}
+            {"kappa1": k1, "kappa2": k2, "tau_p": float(tau_p), "mode1": 0.0, "mode2": 0.0}
             for tau_p in np.geomspace(spec.lower * 1.5, spec.upper / 1.5, 4)
             for k1, k2 in ((0.02, 0.1), (0.1, 0.02))
         ]
 
-    def conduction(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float]:
-        return params[f"kappa{sensor}"], params["tau_p"]
+    def conduction(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float, float]:
+        return params[f"kappa{sensor}"], params["tau_p"], params[f"mode{sensor}"]
 
     def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
         ratio = params["tau1"] / params["tau2"]

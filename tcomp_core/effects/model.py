@@ -175,7 +175,8 @@ class Model:
                     chain = replace(chain, gain=gain, offset=offset)
                 conduction = effect.conduction(sensor, params)
                 if conduction is not None:
-                    chain = replace(chain, kappa=conduction[0], tau_p=conduction[1])
+                    kappa, tau_p, mode0 = conduction
+                    chain = replace(chain, kappa=kappa, tau_p=tau_p, mode0=mode0)
                 factor = effect.tau_factor(context, params)
                 if factor is not None:
                     chain = replace(chain, factor=factor)
