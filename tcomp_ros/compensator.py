@@ -512,6 +512,14 @@ class CompensatorNode(Node):
             "condition": _fmt(estimate.condition if estimate else math.nan),
             "latest_tau1_s": _fmt(estimate.tau1 if estimate else math.nan),
             "latest_tau2_s": _fmt(estimate.tau2 if estimate else math.nan),
+            # 95 % confidence intervals, from estimators that give them (ml-eiv).
+            **{
+                f"tau{i}_ci_{end}_s": _fmt(
+                    estimate.params.get(f"tau{i}_ci_{end}", math.nan) if estimate else math.nan
+                )
+                for i in (1, 2)
+                for end in ("low", "high")
+            },
             "estimate_accepted": str(bool(status and status.accepted)).lower(),
             "estimate_age_s": _fmt(now - self._accepted_at),
             "last_reason": status.reason if status else "",

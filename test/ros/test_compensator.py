@@ -228,6 +228,19 @@ def test_method_change_at_run_time_takes_effect(harness):
     assert float(values(status)["latest_tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
 
 
+def test_ml_eiv_puts_confidence_intervals_in_the_diagnostics(harness):
+    data = simulate_pair("ramp", noise_percent=2.0, duration=4.0, seed=3)
+    h = harness(window_s=3.0, update_period_s=0.2, method="ml-eiv")
+    h.feed(stamps_for(data.tc1.size, data.dt), data.tc1, data.tc2)
+    found = values(h.next_diagnostics(lambda s: level(s) == "OK"))
+    assert found["method"] == "ml-eiv"
+    for i, tau in ((1, data.tau1), (2, data.tau2)):
+        low, high = float(found[f"tau{i}_ci_low_s"]), float(found[f"tau{i}_ci_high_s"])
+        assert low < float(found[f"latest_tau{i}_s"]) < high
+        assert high - low < 0.1 * tau
+        assert low * 0.97 < tau < high * 1.03  # the interval (with slack for one draw) holds it
+
+
 def test_nan_samples_reported_and_node_carries_on(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=3)
     stamps = stamps_for(data.tc1.size, data.dt)
