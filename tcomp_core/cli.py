@@ -1,4 +1,4 @@
-"""The ``tcomp`` command line: simulate, estimate, reconstruct, sweep, study, diagnose, fit.
+"""The ``tcomp`` command line: simulate, estimate, reconstruct, track, sweep, study, diagnose, fit.
 
 DATA arguments are a CSV file (``time,tc1,tc2[,ref]``) or a rosbag2 MCAP bag (directory or
 ``.mcap`` file) with ``sensor_msgs/msg/Temperature`` on ``/tc1/temperature``,
@@ -18,9 +18,11 @@ import numpy as np
 
 from . import __version__
 from .cli_diagnose import add_diagnose_commands
+from .cli_track import add_track_command
 from .errors import TcompError
 from .estimators import METHODS, PHI_METHODS, Estimate, estimate
 from .estimators.mleiv import phi_from_data
+from .fusion import MODELS, fuse
 from .io import DEFAULT_TOPICS, Record, read_record, write_series
 from .metrics import reconstruction_error_percent
 from .reconstruct import COMBINATIONS, reconstruct
@@ -39,6 +41,10 @@ def _positive_float(text: str) -> float:
 def _phi(text: str) -> float | None:
     """``--phi``: a ratio > 0, or ``auto`` (None: measured from the data)."""
     return None if text == "auto" else _positive_float(text)
+
+
+#: Choices of ``reconstruct --reconstruction``.
+RECONSTRUCTIONS = ("difference", "kalman", "kalman-causal")
 
 
 def _add_data_arguments(parser: argparse.ArgumentParser) -> None:
@@ -132,9 +138,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     rec = verbs.add_parser(
         "reconstruct",
-        help="reconstruct the gas temperature (Eq. 7)",
+        help="reconstruct the gas temperature (Eq. 7 or a Kalman smoother)",
         description="Estimate tau1, tau2 (or take them as given) and reconstruct the gas "
-        "temperature from both thermocouples through the difference equation.",
+        "temperature from both thermocouples: through the difference equation (Eq. 7), or "
+        "by a Kalman smoother (or causal filter) of both sensors whose gas temperature model "
+        "and settings are fitted to the data by maximum likelihood.",
     )
     _add_data_arguments(rec)
     _add_estimator_arguments(rec)
@@ -151,6 +159,20 @@ def build_parser() -> argparse.ArgumentParser:
         choices=COMBINATIONS,
         default="inverse-variance",
         help="how the two reconstructions are combined (default inverse-variance)",
+    )
+    rec.add_argument(
+        "--reconstruction",
+        choices=RECONSTRUCTIONS,
+        default="difference",
+        help="difference: Eq. (7) (default); kalman: RTS smoother of both sensors; "
+        "kalman-causal: the forward filter alone, as the node runs it",
+    )
+    rec.add_argument(
+        "--signal-model",
+        choices=["auto", *MODELS],
+        default="auto",
+        help="gas temperature model of the Kalman reconstructions (default auto: the most "
+        "likely, penalised by its number of settings)",
     )
     rec.add_argument("--png", type=Path, help="also plot the reconstruction to this PNG")
     rec.add_argument("--force", action="store_true", help="overwrite an existing output")
@@ -191,6 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     sty.set_defaults(handler=_cmd_study)
 
     add_diagnose_commands(verbs, _add_data_arguments)
+    add_track_command(verbs, _add_data_arguments, read_data)
     return parser
 
 
@@ -299,6 +322,8 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         print(f"{args.method}: tau1 = {tau1:.6f} s, tau2 = {tau2:.6f} s")
     else:
         tau1, tau2 = args.tau1, args.tau2
+    if args.reconstruction != "difference":
+        return _reconstruct_kalman(record, args, tau1, tau2)
     recon = reconstruct(
         record.tc1,
         record.tc2,
@@ -331,12 +356,56 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
             error = reconstruction_error_percent(ref, values)
             print(f"e_Tg ({label}) = {error:.2f} % against the ref signal")
     if args.png:
-        series = {"tc1": record.tc1, "tc2": record.tc2, "gas (reconstructed)": recon.gas}
-        if ref is not None:
-            series["ref"] = ref
-        from .plots import plot_reconstruction
+        _plot_reconstruction(args, record, recon.gas, ref)
+    return 0
 
-        print(f"wrote {plot_reconstruction(record.time, series, args.png, str(args.data))}")
+
+def _plot_reconstruction(
+    args: argparse.Namespace, record: Record, gas: np.ndarray, ref: np.ndarray | None
+) -> None:
+    series = {"tc1": record.tc1, "tc2": record.tc2, "gas (reconstructed)": gas}
+    if ref is not None:
+        series["ref"] = ref
+    from .plots import plot_reconstruction
+
+    print(f"wrote {plot_reconstruction(record.time, series, args.png, str(args.data))}")
+
+
+def _reconstruct_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
+    """``reconstruct --reconstruction kalman[-causal]``."""
+    if args.postfilter_hz is not None or args.combine != "inverse-variance":
+        raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
+    fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model)
+    if args.reconstruction == "kalman-causal":
+        fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=fused.model, causal=True)
+    model = fused.model
+    settings = f"q = {model.q:.4g}"
+    if model.kind in ("band-limited", "periodic"):
+        settings += f", {model.freq_hz:.4g} Hz, level q = {model.level_q:.4g}"
+    print(
+        f"{args.reconstruction}: signal model {model.kind} ({settings}), noise sigma1 = "
+        f"{model.sigma1:.4g}, sigma2 = {model.sigma2:.4g} degC, log-likelihood "
+        f"{fused.log_likelihood:.1f}; median std of the estimate {np.median(fused.std):.4g} degC"
+    )
+    # The last element is a prediction no sample observes: leave it out as Eq. (7) does.
+    count = record.tc1.size - 1
+    gas = fused.gas[:count]
+    ref = None if record.ref is None else record.ref[:count]
+    written = write_series(
+        args.output,
+        record.time[:count],
+        record.tc1[:count],
+        record.tc2[:count],
+        ref,
+        gas=gas,
+        overwrite=args.force,
+    )
+    print(f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples")
+    if ref is not None:
+        error = reconstruction_error_percent(ref, gas)
+        print(f"e_Tg ({args.reconstruction}) = {error:.2f} % against the ref signal")
+    if args.png:
+        _plot_reconstruction(args, record, gas, ref)
     return 0
 
 

@@ -1047,6 +1047,11 @@ class CausalFuser:
         self.log_likelihood = 0.0
 
     @property
+    def started(self) -> bool:
+        """Whether the filter holds a state (it has taken a sample since its last reset)."""
+        return self._state is not None
+
+    @property
     def converged(self) -> bool:
         """Whether the filter runs on the steady-state gain."""
         return self._steady
@@ -1058,6 +1063,22 @@ class CausalFuser:
         self._steady = False
         self._exact_samples = 0
         self.log_likelihood = 0.0
+
+    def retune(self, model: FusionModel) -> None:
+        """Switch to new model settings (e.g. new τ) and keep what the filter knows.
+
+        The state ``[x, T_1, T_2]`` means the same under any model with the same signal state,
+        so the estimate carries over without a new diffuse start: a steady filter moves to the
+        new steady-state covariance, a converging one keeps its covariance. A model whose
+        signal state differs (another kind or order) starts afresh (:meth:`reset`).
+        """
+        space = model.state_space()
+        same_state = (model.kind, model.order) == (self.model.kind, self.model.order)
+        self.model, self._space, self._gains = model, space, steady_state(space)
+        if not same_state:
+            self.reset()
+        elif self._steady:
+            self._covariance = self._gains.predicted
 
     def _initial_state(self, y1: float, y2: float) -> NDArray[np.float64]:
         """Sensors at their first readings, the gas (or level) at the faster sensor's."""

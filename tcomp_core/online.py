@@ -10,9 +10,17 @@ arrays this class takes and publishes what it returns.
   (:class:`~tcomp_core.window.SlidingBetaWindow`); :meth:`OnlineCompensator.update_estimate`
   solves it (β methods) or runs the batch estimator on the window's samples (γ, TDR, or when a
   pre-filter is set). An estimate is accepted when it is physical and well conditioned.
-- Each new pair k reconstructs the gas temperature at the previous pair's stamp through Eq. (7)
-  with the latest accepted τ, using the actual stamp step for the pole; an optional causal
-  Butterworth low-pass smooths the result (a forward-backward filter cannot run online).
+- Each new pair k reconstructs the gas temperature at the previous pair's stamp with the latest
+  accepted τ: through Eq. (7) with the actual stamp step for the pole (``'difference'``), or by
+  the causal Kalman filter of both sensors (``'kalman'``, :class:`~tcomp_core.fusion.CausalFuser`)
+  whose signal model is fitted by maximum likelihood on the window when the first τ is
+  accepted, again as the gap-free stretch it is fitted on doubles (up to
+  :data:`FUSION_FIT_SAMPLES`) and whenever τ has moved by :data:`FUSION_REFIT_CHANGE` since;
+  smaller moves only retune its τ. The filter restarts after a gap. An optional causal
+  Butterworth low-pass smooths either result (a forward-backward filter cannot run online).
+- With ``tracking_memory_s`` > 0, τ comes from an exponentially forgetting β-GTLS with the
+  ratio τ1/τ2 held to its long-term value (:class:`~tcomp_core.tracking.ForgettingEstimator`)
+  instead of the sliding window, to follow a τ that changes with the flow velocity.
 """
 
 from __future__ import annotations
@@ -31,12 +39,16 @@ from .estimators.beta import estimate_beta_from_scatter
 from .estimators.scatter import beta_scatter, solve_gtls
 from .filters import prefilter
 from .fit import fit_error_percent
+from .fusion import MODELS, CausalFuser, FusionModel, fit_fusion_model
 from .reconstruct import combination_weight
+from .tracking import ForgettingEstimator
 from .validation import MIN_SAMPLES
 from .window import BETA_METHODS, SlidingBetaWindow
 
 __all__ = [
+    "RECONSTRUCTIONS",
     "RECONSTRUCT_FROM",
+    "SIGNAL_MODELS",
     "EstimateStatus",
     "OnlineCompensator",
     "OnlineConfig",
@@ -45,6 +57,9 @@ __all__ = [
 
 ReconstructFrom = Literal["fused", "tc1", "tc2"]
 RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
+Reconstruction = Literal["difference", "kalman"]
+RECONSTRUCTIONS: tuple[str, ...] = get_args(Reconstruction)
+SIGNAL_MODELS: tuple[str, ...] = ("auto", *MODELS)
 
 #: Shortest gap-free segment worth pre-filtering (zero-phase filters need edge padding).
 MIN_PREFILTER_SAMPLES = 64
@@ -54,6 +69,15 @@ PERIOD_LEARNING_SAMPLES = 64
 #: rows and again after every further batch of as many: output starts early and the pairs
 #: that came before it are reconstructed from the backlog instead of being lost.
 FIRST_ESTIMATE_ROWS = 256
+#: Relative move of τ1 or τ2 since the Kalman filter's signal model was fitted that makes the
+#: next accepted estimate refit it (smaller moves only retune τ).
+FUSION_REFIT_CHANGE = 0.1
+#: Newest samples of the window's longest gap-free stretch the signal model is fitted on: a
+#: random-walk model takes ~0.1 s on as many, 'auto' (all four models) ~1.5 s.
+FUSION_FIT_SAMPLES = 4096
+#: The long-term ratio τ1/τ2 of the tracking estimator forgets over this many tracking memories
+#: (or the window, if longer).
+RATIO_MEMORY_FACTOR = 10.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,7 +99,13 @@ class OnlineConfig:
     postfilter_order : int
         Order of that low-pass.
     reconstruct_from : {'fused', 'tc1', 'tc2'}
-        Which reconstruction is output.
+        Which Eq. (7) reconstruction is output (``'difference'`` only).
+    reconstruction : {'difference', 'kalman'}
+        Eq. (7) through the difference equation, or the causal Kalman filter of both sensors.
+    signal_model : {'auto', 'random-walk', 'integrated-random-walk', 'band-limited', 'periodic'}
+        Gas temperature model of the Kalman filter (:mod:`tcomp_core.fusion`).
+    tracking_memory_s : float
+        Forgetting time constant of the tracking estimator, seconds; 0 = sliding window.
     sample_period_s : float
         Sample period of the pairs, seconds; 0 = learn it from the stamps.
     gap_factor : float
@@ -93,6 +123,9 @@ class OnlineConfig:
     postfilter_hz: float = 0.0
     postfilter_order: int = 2
     reconstruct_from: str = "fused"
+    reconstruction: str = "difference"
+    signal_model: str = "random-walk"
+    tracking_memory_s: float = 0.0
     sample_period_s: float = 0.0
     gap_factor: float = 1.5
     max_condition: float = 1e3
@@ -109,6 +142,18 @@ class OnlineConfig:
             (
                 self.reconstruct_from in RECONSTRUCT_FROM,
                 f"reconstruct_from={self.reconstruct_from!r} is not one of {RECONSTRUCT_FROM}",
+            ),
+            (
+                self.reconstruction in RECONSTRUCTIONS,
+                f"reconstruction={self.reconstruction!r} is not one of {RECONSTRUCTIONS}",
+            ),
+            (
+                self.signal_model in SIGNAL_MODELS,
+                f"signal_model={self.signal_model!r} is not one of {SIGNAL_MODELS}",
+            ),
+            (
+                math.isfinite(self.tracking_memory_s) and self.tracking_memory_s >= 0.0,
+                f"tracking_memory_s={self.tracking_memory_s!r} must be >= 0 s",
             ),
             (self.sample_period_s >= 0.0, f"sample_period_s={self.sample_period_s!r} < 0"),
             (self.gap_factor > 1.0, f"gap_factor={self.gap_factor!r} must be > 1"),
@@ -182,6 +227,16 @@ class OnlineCompensator:
         self._backlog: list[tuple[NDArray, ...]] = []
         self._backlog_rows = 0
         self._next_first_attempt = FIRST_ESTIMATE_ROWS
+        self._fuser: CausalFuser | None = None
+        self._fuser_stamp: int | None = None  # stamp of the last sample the fuser took
+        self._fusion_tau: tuple[float, float] | None = None  # τ its signal model was fitted at
+        self._fusion_samples = 0  # samples it was fitted on
+        self._tracker: ForgettingEstimator | None = None
+        #: Why the Kalman filter's signal model could not be fitted ('' when it could).
+        self.fusion_error = ""
+        #: Variance of each gas sample the last :meth:`add_pairs` returned, °C² (0 = unknown,
+        #: as for the difference equation).
+        self.last_variance: NDArray[np.float64] = np.empty(0)
 
     @property
     def config(self) -> OnlineConfig:
@@ -197,6 +252,11 @@ class OnlineCompensator:
     def tau(self) -> tuple[float, float] | None:
         """Time constants (τ1, τ2) in seconds the reconstruction uses, once known."""
         return self._tau
+
+    @property
+    def fusion_model(self) -> FusionModel | None:
+        """The Kalman filter's model once fitted (``reconstruction='kalman'``)."""
+        return None if self._fuser is None else self._fuser.model
 
     @property
     def window_samples(self) -> int:
@@ -222,6 +282,40 @@ class OnlineCompensator:
             old.postfilter_order,
         ):
             self._sos = self._filter_state = None
+        if (config.reconstruction, config.signal_model) != (old.reconstruction, old.signal_model):
+            self._fuser = self._fuser_stamp = self._fusion_tau = None
+            self.fusion_error = ""
+            if config.reconstruction == "kalman" and self._tau is not None:
+                self._update_fuser()
+        if (config.tracking_memory_s, config.phi, config.window_s) != (
+            old.tracking_memory_s,
+            old.phi,
+            old.window_s,
+        ):
+            self._tracker = None
+            if self._window is not None:
+                self._refill_tracker()
+
+    def _new_tracker(self) -> ForgettingEstimator | None:
+        memory = self._config.tracking_memory_s
+        if memory <= 0.0 or self._period is None:
+            return None
+        return ForgettingEstimator(
+            self._period,
+            memory_s=memory,
+            phi=self._config.phi,
+            ratio_memory_s=max(self._config.window_s, RATIO_MEMORY_FACTOR * memory),
+        )
+
+    def _refill_tracker(self) -> None:
+        """A new tracker fed with the window's samples, gap by gap."""
+        assert self._window is not None
+        self._tracker = self._new_tracker()
+        if self._tracker is None:
+            return
+        for segment in np.split(self._window.samples, self._window.segment_starts):
+            self._tracker.mark_gap()
+            self._tracker.extend(segment[:, 0], segment[:, 1])
 
     def _new_window(self) -> SlidingBetaWindow:
         assert self._period is not None  # set before any sample reaches here
@@ -258,6 +352,7 @@ class OnlineCompensator:
         second = np.asarray(tc2, dtype=np.float64)
         if not (stamps.shape == first.shape == second.shape) or stamps.ndim != 1:
             raise DataError("stamps, tc1 and tc2 must be 1-D arrays of one length")
+        self.last_variance = np.empty(0)
         if stamps.size == 0:
             return np.empty(0, dtype=np.int64), np.empty(0)
         if not (np.isfinite(first).all() and np.isfinite(second).all()):
@@ -278,15 +373,18 @@ class OnlineCompensator:
             learnt = np.array(self._learning)
             self._learning = []
             self._period = float(np.median(np.diff(learnt[:, 0]))) * 1e-9
-            return self._take(learnt[:, 0].astype(np.int64), learnt[:, 1], learnt[:, 2])
-        return self._take(stamps, first, second)
+            stamps, first, second = learnt[:, 0].astype(np.int64), learnt[:, 1], learnt[:, 2]
+        out_stamps, gas, self.last_variance = self._take(stamps, first, second)
+        return out_stamps, gas
 
     def _take(
         self, stamps: NDArray[np.int64], tc1: NDArray[np.float64], tc2: NDArray[np.float64]
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+        """Window the pairs and reconstruct what τ allows: stamps, gas and its variance."""
         assert self._period is not None  # set before any sample reaches here
         if self._window is None:
             self._window = self._new_window()
+            self._tracker = self._new_tracker()
         if self._previous is not None:
             stamps = np.concatenate(([self._previous[0]], stamps))
             tc1 = np.concatenate(([self._previous[1]], tc1))
@@ -299,16 +397,34 @@ class OnlineCompensator:
             self._window.extend(tc1[1:], tc2[1:], contiguous)
         else:  # the very first sample has no predecessor to link to
             self._window.extend(tc1, tc2, np.concatenate(([True], contiguous)))
+        if self._tracker is not None:
+            self._feed_tracker(tc1, tc2, contiguous, linked=self._previous is not None)
         self._previous = (int(stamps[-1]), float(tc1[-1]), float(tc2[-1]))
         if self._tau is None and self._window.rows >= self._next_first_attempt:
             self._next_first_attempt = self._window.rows + FIRST_ESTIMATE_ROWS
             self.update_estimate()
         if self._tau is None:
             self._hold(stamps, tc1, tc2, steps_s, contiguous)
-            return np.empty(0, dtype=np.int64), np.empty(0)
+            return np.empty(0, dtype=np.int64), np.empty(0), np.empty(0)
         if self._backlog:
             return self._reconstruct_backlog_and(stamps, tc1, tc2, steps_s, contiguous)
         return self._reconstruct(stamps, tc1, tc2, steps_s, contiguous)
+
+    def _feed_tracker(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        contiguous: NDArray[np.bool_],
+        linked: bool,
+    ) -> None:
+        """Give the tracker the new samples (all but the first when ``linked``), gap by gap."""
+        assert self._tracker is not None
+        breaks = np.flatnonzero(~contiguous) + 1
+        for start, stop in zip((0, *breaks), (*breaks, tc1.size), strict=True):
+            if start > 0 or not linked:
+                self._tracker.mark_gap()
+            begin = 1 if start == 0 and linked else start
+            self._tracker.extend(tc1[begin:stop], tc2[begin:stop])
 
     def _hold(self, *chunk: NDArray) -> None:
         """Keep pairs until the first τ, at most one window's worth (the oldest go first)."""
@@ -324,14 +440,12 @@ class OnlineCompensator:
 
     def _reconstruct_backlog_and(
         self, *current: NDArray
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
         """Reconstruct the held pairs and the current ones with the first τ, in stamp order."""
         outputs = [self._reconstruct(*chunk) for chunk in (*self._backlog, current)]
         self._backlog, self._backlog_rows = [], 0
-        return (
-            np.concatenate([stamps for stamps, _ in outputs]),
-            np.concatenate([gas for _, gas in outputs]),
-        )
+        stamps, gas, variance = zip(*outputs, strict=True)
+        return np.concatenate(stamps), np.concatenate(gas), np.concatenate(variance)
 
     def _reconstruct(
         self,
@@ -340,9 +454,28 @@ class OnlineCompensator:
         tc2: NDArray[np.float64],
         steps_s: NDArray[np.float64],
         contiguous: NDArray[np.bool_],
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
         if steps_s.size == 0:
-            return np.empty(0, dtype=np.int64), np.empty(0)
+            return np.empty(0, dtype=np.int64), np.empty(0), np.empty(0)
+        assert self._tau is not None  # pairs are held until the first τ
+        out_stamps = stamps[:-1][contiguous]
+        self.counters["reconstructed"] += int(out_stamps.size)
+        self.counters["unreconstructed"] += int((~contiguous).sum())
+        if self._config.reconstruction == "kalman" and self._fuser is not None:
+            gas, variance = self._kalman(stamps, tc1, tc2, contiguous)
+        else:
+            gas, variance = self._difference(tc1, tc2, steps_s, contiguous), None
+        gas = self._postfilter(gas)
+        return out_stamps, gas, np.zeros(gas.size) if variance is None else variance
+
+    def _difference(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        steps_s: NDArray[np.float64],
+        contiguous: NDArray[np.bool_],
+    ) -> NDArray[np.float64]:
+        """Eq. (7) over each contiguous step, with the actual step for the poles."""
         assert self._tau is not None  # pairs are held until the first τ
         tau1, tau2 = self._tau
         a1 = np.exp(-steps_s / tau1)
@@ -359,11 +492,34 @@ class OnlineCompensator:
             combine,  # type: ignore[arg-type]
         )
         gas = weight * gas1 + (1.0 - weight) * gas2
-        out_stamps = stamps[:-1][contiguous]
-        gas = gas[contiguous]
-        self.counters["reconstructed"] += int(gas.size)
-        self.counters["unreconstructed"] += int((~contiguous).sum())
-        return out_stamps, self._postfilter(gas)
+        return gas[contiguous]
+
+    def _kalman(
+        self,
+        stamps: NDArray[np.int64],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        contiguous: NDArray[np.bool_],
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Causal Kalman estimate over each contiguous step and its variance.
+
+        The filter continues from the last sample it took when this batch starts with it, and
+        starts afresh after a gap or a lost one.
+        """
+        assert self._fuser is not None
+        breaks = np.flatnonzero(~contiguous) + 1
+        gas, std = [], []
+        for start, stop in zip((0, *breaks), (*breaks, stamps.size), strict=True):
+            begin = start
+            if start == 0 and self._fuser.started and self._fuser_stamp == int(stamps[0]):
+                begin = 1
+            else:
+                self._fuser.reset()
+            estimates, deviations = self._fuser.extend(tc1[begin:stop], tc2[begin:stop])
+            gas.append(estimates)
+            std.append(deviations)
+        self._fuser_stamp = int(stamps[-1])
+        return np.concatenate(gas), np.concatenate(std) ** 2
 
     def _postfilter(self, gas: NDArray[np.float64]) -> NDArray[np.float64]:
         cutoff = self._config.postfilter_hz
@@ -387,8 +543,50 @@ class OnlineCompensator:
         status = self._estimate_window()
         if status.accepted and status.estimate is not None:
             self._tau = (status.estimate.tau1, status.estimate.tau2)
+            if self._config.reconstruction == "kalman":
+                self._update_fuser()
         self.last_status = status
         return status
+
+    def _update_fuser(self) -> None:
+        """Retune the Kalman filter to the new τ, or refit its signal model on the window."""
+        assert self._tau is not None and self._period is not None
+        tau1, tau2 = self._tau
+        window = self._window
+        assert window is not None  # an accepted τ comes from it
+        longest = max(np.split(window.samples, window.segment_starts), key=len)
+        segment = longest[-FUSION_FIT_SAMPLES:]
+        if self._fuser is not None and self._fusion_tau is not None:
+            moved = max(
+                abs(new / old - 1.0) for new, old in zip(self._tau, self._fusion_tau, strict=True)
+            )
+            # Early fits see few samples (noise levels from short spectra): refit as the
+            # stretch doubles, up to FUSION_FIT_SAMPLES.
+            grown = segment.shape[0] >= 2 * self._fusion_samples
+            if moved < FUSION_REFIT_CHANGE and not grown:
+                self._fuser.retune(replace(self._fuser.model, tau1=tau1, tau2=tau2))
+                return
+        try:
+            model, _, _ = fit_fusion_model(
+                segment[:, 0],
+                segment[:, 1],
+                self._period,
+                tau1,
+                tau2,
+                model=self._config.signal_model,  # type: ignore[arg-type]
+            )
+        except (TcompError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            self.fusion_error = f"signal model not fitted: {exc}"
+            if self._fuser is not None:
+                self._fuser.retune(replace(self._fuser.model, tau1=tau1, tau2=tau2))
+            return
+        self.fusion_error = ""
+        if self._fuser is None:
+            self._fuser = CausalFuser(model)
+        else:
+            self._fuser.retune(model)
+        self._fusion_tau = (tau1, tau2)
+        self._fusion_samples = segment.shape[0]
 
     def _estimate_window(self) -> EstimateStatus:
         window = self._window
@@ -403,7 +601,9 @@ class OnlineCompensator:
         config = self._config
         samples = window.samples
         try:
-            if config.method in BETA_METHODS and config.prefilter_hz == 0.0:
+            if self._tracker is not None and self._tracker.rows + 1 >= MIN_SAMPLES:
+                result = self._tracker.estimate()
+            elif config.method in BETA_METHODS and config.prefilter_hz == 0.0:
                 result = window.estimate()
             else:
                 result = self._estimate_segments(window, samples)

@@ -361,6 +361,10 @@ class ForgettingEstimator:
         self._last = None
         self.rows = 0
 
+    def mark_gap(self) -> None:
+        """The next sample does not follow the last one: no regression row links the two."""
+        self._last = None
+
     def extend(self, tc1: ArrayLike, tc2: ArrayLike) -> None:
         """Add consecutive sample pairs (following the previous batch without a gap).
 

@@ -47,7 +47,14 @@ from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
 from tcomp_core.estimators import METHODS
-from tcomp_core.online import RECONSTRUCT_FROM, EstimateStatus, OnlineCompensator, OnlineConfig
+from tcomp_core.online import (
+    RECONSTRUCT_FROM,
+    RECONSTRUCTIONS,
+    SIGNAL_MODELS,
+    EstimateStatus,
+    OnlineCompensator,
+    OnlineConfig,
+)
 
 from .health import Level, SensorActivity, assess
 from .pairing import PairMatcher
@@ -129,6 +136,31 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
             additional_constraints=f"one of {', '.join(RECONSTRUCT_FROM)}",
         ),
     ),
+    "reconstruction": (
+        "difference",
+        _descriptor(
+            "'difference': Eq. (7) per sensor, combined by reconstruct_from; 'kalman': causal "
+            "Kalman filter of both sensors, its signal model fitted on the window (the "
+            "published variance is then its own)",
+            additional_constraints=f"one of {', '.join(RECONSTRUCTIONS)}",
+        ),
+    ),
+    "signal_model": (
+        "random-walk",
+        _descriptor(
+            "gas temperature model of the Kalman filter; 'auto' fits all (~1.5 s per refit "
+            "on the estimation timer, against ~0.1 s for one)",
+            additional_constraints=f"one of {', '.join(SIGNAL_MODELS)}",
+        ),
+    ),
+    "tracking_memory_s": (
+        0.0,
+        _descriptor(
+            "forgetting time of a tau that changes with the flow, s: tau from an exponentially "
+            "forgetting beta-GTLS with tau1/tau2 held to its long-term value (0 = the window)",
+            floating_point_range=_float_range(0.0, 3600),
+        ),
+    ),
     "hardware_id": ("thermocouple-pair", _descriptor("hardware_id of the diagnostic status")),
     "sample_period_s": (
         0.0,
@@ -194,6 +226,9 @@ ENGINE_PARAMETERS = (
     "prefilter_hz",
     "postfilter_hz",
     "reconstruct_from",
+    "reconstruction",
+    "signal_model",
+    "tracking_memory_s",
     "sample_period_s",
     "max_condition",
     "max_model_error_pct",
@@ -364,8 +399,11 @@ class CompensatorNode(Node):
         if frame_id != self._encoder.frame_id:
             self._encoder = Encoder(frame_id)
         encode, publish = self._encoder.encode, self._gas_pub.publish
-        for stamp, value in zip(out_stamps.tolist(), gas.tolist(), strict=True):
-            publish(encode(stamp, value))
+        outputs = zip(
+            out_stamps.tolist(), gas.tolist(), self._engine.last_variance.tolist(), strict=True
+        )
+        for stamp, value, variance in outputs:
+            publish(encode(stamp, value, variance))
         self._published += len(gas)
         if gas.size and self._engine.period_s:
             # From the stamp of the input pair that completed each output to its publication.
@@ -490,6 +528,10 @@ class CompensatorNode(Node):
             "tau2_s": _fmt(tau[1] if tau else math.nan),
             "alpha": _fmt(tau[0] / tau[1] if tau else math.nan),
             "method": str(self._values["method"]),
+            "reconstruction": str(self._values["reconstruction"]),
+            "signal_model": self._engine.fusion_model.kind if self._engine.fusion_model else "",
+            "signal_model_error": self._engine.fusion_error,
+            "tracking_memory_s": _fmt(float(self._values["tracking_memory_s"])),
             "window_samples": str(self._engine.window_samples),
             "window_s": _fmt(float(self._values["window_s"])),
             "sample_period_s": _fmt(self._engine.period_s or math.nan),

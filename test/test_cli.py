@@ -8,7 +8,7 @@ import pytest
 from tcomp_core.cli import build_parser, main
 from tcomp_core.io import read_record
 
-VERBS = ["simulate", "estimate", "reconstruct", "sweep", "study"]
+VERBS = ["simulate", "estimate", "reconstruct", "track", "sweep", "study"]
 
 
 @pytest.mark.parametrize("verb", VERBS)
@@ -101,6 +101,61 @@ def test_reconstruct_refuses_to_overwrite(simulated, tmp_path, capsys):
     assert main(["reconstruct", str(simulated[0]), "-o", str(output)]) == 1
     assert "gas.csv" in capsys.readouterr().err
     assert output.read_text() == "keep me"
+
+
+def test_kalman_reconstruction_beats_eq7_against_the_ref(tmp_path, capsys):
+    csv = tmp_path / "noisy.csv"
+    simulate = ["simulate", "--signal", "ramp", "--noise", "2", "--duration", "6", "-o"]
+    assert main([*simulate, str(csv)]) == 0
+    errors = {}
+    for reconstruction in ("difference", "kalman", "kalman-causal"):
+        output = tmp_path / f"{reconstruction}.csv"
+        status = main(
+            [
+                *("reconstruct", str(csv), "-o", str(output)),
+                *("--reconstruction", reconstruction, "--signal-model", "random-walk"),
+            ]
+        )
+        assert status == 0
+        text = capsys.readouterr().out
+        line = text.splitlines()[-1] if reconstruction != "difference" else text
+        label = "combined" if reconstruction == "difference" else reconstruction
+        errors[reconstruction] = float(line.split(f"e_Tg ({label}) = ")[1].split(" %")[0])
+        written = read_record(output, columns=("tc1", "tc2", "gas"))
+        assert written.tc1.size == 2999  # 6 s at 500 Hz, the last sample has no successor
+    assert errors["kalman"] < errors["kalman-causal"] < errors["difference"]
+    status = main(
+        [
+            *("reconstruct", str(csv), "-o", str(tmp_path / "x.csv")),
+            *("--reconstruction", "kalman", "--postfilter-hz", "50"),
+        ]
+    )
+    assert status == 1
+    assert "apply to --reconstruction difference" in capsys.readouterr().err
+
+
+def test_track_follows_a_changing_tau_and_writes_its_history(tmp_path, capsys):
+    from tcomp_core.io import write_csv
+    from tcomp_core.tracking import varying_lag_response
+
+    dt, count = 0.002, 6000
+    time = np.arange(count) * dt
+    gas = 100 + 20 * np.sin(2 * np.pi * 3 * time) + 10 * np.sin(2 * np.pi * 17 * time)
+    scale = np.where(time < 6.0, 1.0, 1.3)  # the flow slows down at 6 s: tau rises 30 %
+    rng = np.random.default_rng(8)
+    tc1 = varying_lag_response(gas, 0.02 * scale, dt) + rng.normal(0.0, 0.03, count)
+    tc2 = varying_lag_response(gas, 0.1 * scale, dt) + rng.normal(0.0, 0.03, count)
+    data = write_csv(tmp_path / "flow.csv", time, tc1, tc2)
+    output = tmp_path / "track.csv"
+    assert main(["track", str(data), "--memory-s", "0.5", "-o", str(output)]) == 0
+    assert "ratio tau1/tau2 held at" in capsys.readouterr().out
+    history = np.genfromtxt(output, delimiter=",", names=True)
+    early, late = history["time"] < 5.0, history["time"] > 7.0
+    assert np.median(history["tau1"][early]) == pytest.approx(0.02, rel=0.05)
+    assert np.median(history["tau1"][late]) == pytest.approx(0.026, rel=0.05)
+    assert np.median(history["tau2"][late]) == pytest.approx(0.13, rel=0.05)
+    assert main(["track", str(data), "-o", str(output)]) == 1
+    assert "pass --force" in capsys.readouterr().err
 
 
 def test_sweep_writes_png_and_picks_a_frequency(simulated, tmp_path, capsys):

@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tcomp_core.metrics import reconstruction_error_percent
 from tcomp_core.online import FIRST_ESTIMATE_ROWS, OnlineCompensator, OnlineConfig
 from tcomp_core.reconstruct import reconstruct
+from tcomp_core.tracking import varying_lag_response
 
 
 def _feed(engine, pair, batch=50):
@@ -67,3 +69,152 @@ def test_reconstruction_matches_the_batch_reconstruction_with_the_same_tau(pair_
     _, _, gas = _feed(engine, pair)
     batch = reconstruct(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2)
     np.testing.assert_allclose(gas, batch.gas[: gas.size], rtol=1e-9)
+
+
+def _feed_and_estimate(engine, pair, batch=100, every=5):
+    """Feed in batches, re-estimating after every ``every``-th batch (a timer's stand-in)."""
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+    out_stamps, out_gas, out_variance = [], [], []
+    for number, start in enumerate(range(0, stamps.size, batch)):
+        part = slice(start, start + batch)
+        s, g = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+        out_stamps.append(s)
+        out_gas.append(g)
+        out_variance.append(engine.last_variance)
+        if number % every == 0:
+            engine.update_estimate()
+    return (
+        stamps,
+        np.concatenate(out_stamps),
+        np.concatenate(out_gas),
+        np.concatenate(out_variance),
+    )
+
+
+def _second_half_error(pair, stamps, out_stamps, gas):
+    index = np.searchsorted(stamps, out_stamps)
+    late = index > stamps.size // 2
+    return reconstruction_error_percent(pair.gas[index[late]], gas[late])
+
+
+@pytest.mark.parametrize(
+    ("kind", "signal_model", "most"),
+    [
+        ("sinusoid", "periodic", 0.1),
+        ("sinusoid", "random-walk", 0.8),
+        ("ramp", "random-walk", 1.0),
+    ],
+)
+def test_kalman_reconstruction_beats_the_difference_equation(
+    pair_factory, kind, signal_model, most
+):
+    pair = pair_factory(kind, noise_percent=2.0, seed=3, duration=10.0)
+    errors, outputs = {}, {}
+    for reconstruction in ("difference", "kalman"):
+        config = OnlineConfig(
+            window_s=4.0, reconstruction=reconstruction, signal_model=signal_model
+        )
+        engine = OnlineCompensator(config)
+        stamps, out_stamps, gas, variance = _feed_and_estimate(engine, pair)
+        errors[reconstruction] = _second_half_error(pair, stamps, out_stamps, gas)
+        outputs[reconstruction] = out_stamps
+        if reconstruction == "kalman":
+            assert engine.fusion_model is not None
+            assert engine.fusion_model.kind == signal_model
+            assert engine.fusion_error == ""
+            assert variance.shape == gas.shape and np.all(variance > 0.0)
+        else:
+            assert np.all(variance == 0.0)
+    # The same samples come out, stamped alike; only their values differ.
+    np.testing.assert_array_equal(outputs["kalman"], outputs["difference"])
+    assert errors["kalman"] < most * errors["difference"]
+
+
+def _feed_kept(engine, pair, keep):
+    """Feed the pairs where ``keep`` holds, estimating after every batch."""
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+    out_stamps, gas = [], []
+    for start in range(0, stamps.size, 100):
+        part = np.flatnonzero(keep[start : start + 100]) + start
+        s, g = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+        out_stamps.append(s)
+        gas.append(g)
+        engine.update_estimate()
+    return stamps, np.concatenate(out_stamps), np.concatenate(gas)
+
+
+def test_kalman_filter_restarts_after_a_gap_and_loses_no_sample(pair_factory):
+    pair = pair_factory("multisine", noise_percent=1.0, seed=4, duration=6.0)
+    everything = np.ones(pair.time.size, dtype=bool)
+    keep = everything.copy()
+    keep[1500:1600] = False  # 0.2 s of both sensors lost
+    config = OnlineConfig(window_s=2.0, reconstruction="kalman")
+    stamps, out_stamps, gas = _feed_kept(OnlineCompensator(config), pair, keep)
+    kept = stamps[keep]
+    # Every kept pair but the last, and the one before the gap (no successor), comes out.
+    np.testing.assert_array_equal(out_stamps, np.setdiff1d(kept[:-1], [stamps[1499]]))
+    _, whole_stamps, whole_gas = _feed_kept(OnlineCompensator(config), pair, everything)
+
+    def error_after_restart(at, values):
+        after = at > stamps[1700]
+        return reconstruction_error_percent(
+            pair.gas[np.searchsorted(stamps, at[after])], values[after]
+        )
+
+    # 0.2 s after the restart the filter is as good as one that never stopped.
+    restarted = error_after_restart(out_stamps, gas)
+    assert restarted < 1.1 * error_after_restart(whole_stamps, whole_gas)
+
+
+def test_switching_to_kalman_at_run_time_fits_the_signal_model_at_once(pair_factory):
+    pair = pair_factory("ramp", noise_percent=1.0, seed=5, duration=4.0)
+    engine = OnlineCompensator(OnlineConfig(window_s=2.0))
+    _feed_and_estimate(engine, pair)
+    assert engine.fusion_model is None
+    engine.reconfigure(OnlineConfig(window_s=2.0, reconstruction="kalman"))
+    assert engine.fusion_model is not None
+    assert (engine.fusion_model.tau1, engine.fusion_model.tau2) == engine.tau
+    with pytest.raises(ValueError, match="reconstruction='wiener'"):
+        OnlineConfig(reconstruction="wiener")
+    with pytest.raises(ValueError, match="signal_model='pink'"):
+        OnlineConfig(signal_model="pink")
+
+
+def _velocity_pair(seed):
+    """Three tones through sensors whose τ follow 1 + 0.3 sin(2π t / 8 s), 1 % noise."""
+    dt, count = 0.002, 8000
+    time = np.arange(count) * dt
+    gas = (
+        100.0
+        + 20.0 * np.sin(2 * np.pi * 3 * time)
+        + 10.0 * np.sin(2 * np.pi * 11 * time + 1.0)
+        + 5.0 * np.sin(2 * np.pi * 23 * time)
+    )
+    scale = 1.0 + 0.3 * np.sin(2 * np.pi * time / 8.0)
+    rng = np.random.default_rng(seed)
+    tc1 = varying_lag_response(gas, 0.0238 * scale, dt) + rng.normal(0.0, 0.05, count)
+    tc2 = varying_lag_response(gas, 0.1168 * scale, dt) + rng.normal(0.0, 0.05, count)
+    return time, tc1, tc2, 0.0238 * scale
+
+
+def test_tracking_memory_follows_a_tau_that_changes_with_the_flow():
+    time, tc1, tc2, tau1 = _velocity_pair(seed=6)
+    stamps = np.round(time * 1e9).astype(np.int64) + 1
+    errors = {}
+    for memory in (0.0, 0.5):
+        engine = OnlineCompensator(OnlineConfig(window_s=2.0, tracking_memory_s=memory))
+        relative = []
+        for start in range(0, stamps.size, 100):
+            part = slice(start, start + 100)
+            engine.add_pairs(stamps[part], tc1[part], tc2[part])
+            engine.update_estimate()
+            if start >= 2000:
+                relative.append(engine.tau[0] / tau1[start + 99] - 1.0)
+        errors[memory] = float(np.sqrt(np.mean(np.square(relative))))
+        if memory:
+            assert engine.last_status.estimate.method == "beta-gtls-forgetting"
+            ratio = engine.tau[0] / engine.tau[1]
+            assert ratio == pytest.approx(0.0238 / 0.1168, rel=0.03)
+    # The 2 s window lags the change by ~1 s; a 0.5 s memory by ~0.5 s.
+    assert errors[0.5] < 0.7 * errors[0.0]
+    assert errors[0.5] < 0.12

@@ -10,10 +10,13 @@ Suspects are ranked by held-out error; when two are within
 :data:`TIE_TOLERANCE` of each other the one with fewer parameters ranks first, except for
 radiation against calibration. Linearised, radiation is a relative gain and offset of the two
 sensors (with τ shortened by 1 + ρ), so both explain a level-dependent offset about equally
-well unless the noise is low. Radiation ranks first when the residual curves against the level
-(T⁴ bends it, a gain and offset do not; :data:`CURVATURE_T`) or when the physics fits: a hot
-record, a wall cooler than the gas and the thicker (slower) wire radiating relatively more.
-Otherwise calibration, the simpler model, does.
+well unless the noise is low. Radiation ranks first only on a hot record
+(:data:`RADIATION_MIN_LEVEL_C`; colder, a wire's radiative loss is too small to show), and
+there when the residual curves against the level (T⁴ bends it, a gain and offset do not;
+:data:`CURVATURE_T`) or when the fit is physical: a wall cooler than the gas and the thicker
+(slower) wire radiating relatively more. Otherwise calibration, the simpler model, does. (On a
+cold record a residual can curve against the level for other reasons, e.g. a hidden delay on
+a signal whose slope depends on its level.)
 """
 
 from __future__ import annotations
@@ -144,7 +147,8 @@ def _radiation_or_calibration(
         return ranked
     radiation, calibration = (first, second) if first.effect == "radiation" else (second, first)
     top = [radiation, calibration]
-    if not (_bent(evaluator, current) or _radiation_plausible(evaluator, radiation)):
+    hot = evaluator.context.level_mean_c >= RADIATION_MIN_LEVEL_C
+    if not (hot and (_bent(evaluator, current) or _radiation_plausible(evaluator, radiation))):
         top.reverse()
     return top + ranked[2:]
 
@@ -161,20 +165,19 @@ def _bent(evaluator: Evaluator, current: ModelFit) -> bool:
 
 
 def _radiation_plausible(evaluator: Evaluator, radiation: Suspect) -> bool:
-    """Whether a hot record and the radiation fit point to radiation rather than calibration.
+    """Whether the radiation fit is physical rather than a relabelled calibration.
 
     To first order radiation *is* a relative gain and offset (and τ shortened by 1 + ρ), so at
-    moderate noise both fit alike. Physics then decides: radiation needs a hot record
-    (:data:`RADIATION_MIN_LEVEL_C`), a wall cooler than the gas, and the slower (thicker) wire
-    radiating relatively more (r ∝ d^½), visibly (ρ ≥ :data:`RADIATION_MIN_RHO`).
+    moderate noise both fit alike. Physics then decides: radiation needs a wall cooler than the
+    gas and the slower (thicker) wire radiating relatively more (r ∝ d^½), visibly
+    (ρ ≥ :data:`RADIATION_MIN_RHO`).
     """
     if radiation.fit is None:
         return False
     p = radiation.fit.params
     slow, fast = evaluator.slow, 3 - evaluator.slow
     return bool(
-        evaluator.context.level_mean_c >= RADIATION_MIN_LEVEL_C
-        and p["wall_c"] < evaluator.context.level_mean_c
+        p["wall_c"] < evaluator.context.level_mean_c
         and p[f"rho{slow}"] >= p[f"rho{fast}"]
         and p[f"rho{slow}"] >= RADIATION_MIN_RHO
     )

@@ -38,14 +38,13 @@ class Harness:
             self.peer.create_publisher(Temperature, "tc2/temperature", 1000),
         ]
         self.gas = []
+        self.gas_variance = []
         self.sent = [0, 0]
         self.diagnostics = []
         self.peer.create_subscription(
             Temperature,
             "gas_temperature",
-            lambda m: self.gas.append(
-                (m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, m.temperature)
-            ),
+            self._record_gas,
             10000,
         )
         self.peer.create_subscription(
@@ -55,6 +54,11 @@ class Harness:
         self.executor.add_node(self.node)
         self.executor.add_node(self.peer)
         self.spin_until(self.executor, lambda: self.pub[0].get_subscription_count() > 0, 5.0)
+
+    def _record_gas(self, message):
+        stamp = message.header.stamp
+        self.gas.append((stamp.sec * 10**9 + stamp.nanosec, message.temperature))
+        self.gas_variance.append(message.variance)
 
     def send(self, index, stamp_ns, value):
         message = Temperature()
@@ -239,6 +243,35 @@ def test_ml_eiv_puts_confidence_intervals_in_the_diagnostics(harness):
         assert low < float(found[f"latest_tau{i}_s"]) < high
         assert high - low < 0.1 * tau
         assert low * 0.97 < tau < high * 1.03  # the interval (with slack for one draw) holds it
+
+
+def test_kalman_reconstruction_and_tracking_by_name(harness):
+    data = simulate_pair("sinusoid", noise_percent=2.0, duration=4.0, seed=4)
+    h = harness(
+        window_s=2.0,
+        update_period_s=0.2,
+        reconstruction="kalman",
+        signal_model="periodic",
+        tracking_memory_s=0.5,
+    )
+    stamps = stamps_for(data.tc1.size, data.dt)
+    h.feed(stamps, data.tc1, data.tc2)
+    found = values(h.next_diagnostics(lambda s: values(s)["signal_model"] == "periodic"))
+    assert found["reconstruction"] == "kalman"
+    assert found["signal_model_error"] == ""
+    assert float(found["tracking_memory_s"]) == 0.5
+    assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.05)
+    assert h.spin_until(h.executor, lambda: len(h.gas) == h.node._published, 5.0)
+    # Once the filter runs on the fitted model its estimates carry their own variance.
+    late = np.array([stamp for stamp, _ in h.gas]) > stamps[-500]
+    assert late.sum() > 400
+    assert np.all(np.array(h.gas_variance)[late] > 0.0)
+    index = np.searchsorted(stamps, [stamp for stamp, _ in h.gas])[late]
+    got = np.array([value for _, value in h.gas])[late]
+    # The periodic model nearly removes the noise Eq. (7) amplifies (~18 % e_Tg here).
+    assert 100 * np.sqrt(np.mean((got - data.gas[index]) ** 2)) / np.std(data.gas) < 5.0
+    assert not h.node.set_parameters([Parameter("signal_model", value="pink")])[0].successful
+    assert not h.node.set_parameters([Parameter("tracking_memory_s", value=-1.0)])[0].successful
 
 
 def test_nan_samples_reported_and_node_carries_on(harness):
