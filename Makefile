@@ -38,6 +38,7 @@ demo: $(STAMP)
 bench: $(STAMP)
 	$(PY) bench/bench_scatter_vs_svd.py
 	$(PY) bench/bench_accuracy.py
+	$(PY) bench/bench_reconstruction.py
 	$(PY) bench/bench_diagnose.py
 	$(PY) bench/bench_realtime.py
 
