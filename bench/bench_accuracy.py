@@ -12,6 +12,10 @@ Blocks, each one function called by :func:`main`:
     Unequal noise, σ2/σ1 = 2.5 (φ = 0.16) at K = 2 %: bias and std of β-GTLS assuming φ = 1,
     β-GTLS and ml-eiv with φ measured from the data, ml-eiv's interval coverage and the mean of
     the measured φ.
+``reconstruction`` and ``tracking``
+    e_Tg per reconstruction (the paper's 50 Hz post-filter, the hindsight-best post-filter,
+    the Kalman smoother and causal filter) and the τ tracking error, from
+    ``bench_reconstruction.py`` (``--reconstruction-runs`` records per cell; 0 skips them).
 
 Every record is simulated with a seed drawn from ``SeedSequence([seed, block, signal, K, run])``,
 so a cell's figures do not depend on which other cells run. A run an estimator fails on is
@@ -231,6 +235,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--runs", type=int, default=None, help=f"runs per cell ({DEFAULT_RUNS})")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_RUNS} runs per cell")
     parser.add_argument("--seed", type=int, default=0, help="base seed (0)")
+    parser.add_argument(
+        "--reconstruction-runs",
+        type=int,
+        default=10,
+        help="records per cell of the e_Tg and tracking tables (10; 0 skips them)",
+    )
     args = parser.parse_args(argv)
     if args.runs is None:
         args.runs = QUICK_RUNS if args.quick else DEFAULT_RUNS
@@ -244,6 +254,14 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     tau_block(args.runs, args.seed)
     phi_block(args.runs, args.seed)
+    if args.reconstruction_runs > 0:
+        # A sibling script, importable because Python puts bench/ first on the path.
+        from bench_reconstruction import reconstruction_table, tracking_table
+
+        print(f"\ne_Tg (%), mean of {args.reconstruction_runs} seeded 10 s records, true τ\n")
+        reconstruction_table(args.reconstruction_runs)
+        print("\nτ tracking: ±30 % velocity change over 8 s, K = 1 %")
+        tracking_table(max(2, args.reconstruction_runs // 4))
     print(f"seed {args.seed}, {time.perf_counter() - started:.1f} s")
     return 0
 
