@@ -216,7 +216,8 @@ class OnlineCompensator:
         self._tau = initial_tau
         self._window: SlidingBetaWindow | None = None
         self._period: float | None = self._config.sample_period_s or None
-        self._learning: list[tuple[int, float, float]] = []
+        # Batches (stamps, tc1, tc2) seen while the sample period is learnt.
+        self._learning: list[tuple[NDArray[np.int64], NDArray, NDArray]] = []
         self._previous: tuple[int, float, float] | None = None
         self._newest_stamp = 0
         self._filter_state: NDArray[np.float64] | None = None
@@ -365,15 +366,15 @@ class OnlineCompensator:
         self.counters["pairs"] += stamps.size
         self._newest_stamp = int(stamps[-1])
         if self._period is None:
-            self._learning.extend(
-                zip(stamps.tolist(), first.tolist(), second.tolist(), strict=True)
-            )
-            if len(self._learning) < PERIOD_LEARNING_SAMPLES:
+            self._learning.append((stamps, first, second))
+            if sum(batch[0].size for batch in self._learning) < PERIOD_LEARNING_SAMPLES:
                 return np.empty(0, dtype=np.int64), np.empty(0)
-            learnt = np.array(self._learning)
+            # Stamps stay int64: as float64 they would lose the nanoseconds (2^-52 of 1.7e18).
+            stamps, first, second = (
+                np.concatenate(parts) for parts in zip(*self._learning, strict=True)
+            )
             self._learning = []
-            self._period = float(np.median(np.diff(learnt[:, 0]))) * 1e-9
-            stamps, first, second = learnt[:, 0].astype(np.int64), learnt[:, 1], learnt[:, 2]
+            self._period = float(np.median(np.diff(stamps))) * 1e-9
         out_stamps, gas, self.last_variance = self._take(stamps, first, second)
         return out_stamps, gas
 

@@ -218,3 +218,15 @@ def test_tracking_memory_follows_a_tau_that_changes_with_the_flow():
     # The 2 s window lags the change by ~1 s; a 0.5 s memory by ~0.5 s.
     assert errors[0.5] < 0.7 * errors[0.0]
     assert errors[0.5] < 0.12
+
+
+def test_stamps_of_the_first_pairs_keep_every_nanosecond(pair_factory):
+    # Stamps of today's wall clock (~1.8e18 ns) need 61 bits: as float64 they would round.
+    pair = pair_factory("multisine", noise_percent=1.0, seed=2, duration=1.0)
+    stamps = 1_795_000_000_123_456_789 + np.round(pair.time * 1e9).astype(np.int64) + 7
+    engine = OnlineCompensator(OnlineConfig(window_s=1.0))
+    out = [
+        engine.add_pairs(stamps[k : k + 10], pair.tc1[k : k + 10], pair.tc2[k : k + 10])[0]
+        for k in range(0, stamps.size, 10)
+    ]
+    np.testing.assert_array_equal(np.concatenate(out), stamps[:-1])
