@@ -1,4 +1,6 @@
-"""The ``tcomp`` command line: simulate, estimate, reconstruct, track, sweep, study, diagnose, fit.
+"""The ``tcomp`` command line: the verbs that simulate, estimate, reconstruct, track, process.
+
+Also sweep, study, diagnose and fit.
 
 DATA arguments are a CSV file (``time,tc1,tc2[,ref]``) or a rosbag2 MCAP bag (directory or
 ``.mcap`` file) with ``sensor_msgs/msg/Temperature`` on ``/tc1/temperature``,
@@ -18,6 +20,7 @@ import numpy as np
 
 from . import __version__
 from .cli_diagnose import add_diagnose_commands
+from .cli_process import add_process_command
 from .cli_track import add_track_command
 from .errors import TcompError
 from .estimators import METHODS, PHI_METHODS, Estimate, estimate
@@ -214,6 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_diagnose_commands(verbs, _add_data_arguments)
     add_track_command(verbs, _add_data_arguments, read_data)
+    add_process_command(verbs)
     return parser
 
 

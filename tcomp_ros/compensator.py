@@ -55,6 +55,8 @@ from tcomp_core.online import (
     OnlineCompensator,
     OnlineConfig,
 )
+from tcomp_core.status_values import engine_values
+from tcomp_core.status_values import format_value as _fmt
 
 from .health import Level, SensorActivity, assess
 from .pairing import PairMatcher
@@ -520,21 +522,9 @@ class CompensatorNode(Node):
                 sensor.silent_for_s = math.inf
             sensor.rate_hz = (sensor.received - self._counted_at_report[index]) / elapsed
         status = self._status
-        estimate = None if status is None else status.estimate
-        tau = self._engine.tau
         counters = self._matcher.counters
         values = {
-            "tau1_s": _fmt(tau[0] if tau else math.nan),
-            "tau2_s": _fmt(tau[1] if tau else math.nan),
-            "alpha": _fmt(tau[0] / tau[1] if tau else math.nan),
-            "method": str(self._values["method"]),
-            "reconstruction": str(self._values["reconstruction"]),
-            "signal_model": self._engine.fusion_model.kind if self._engine.fusion_model else "",
-            "signal_model_error": self._engine.fusion_error,
-            "tracking_memory_s": _fmt(float(self._values["tracking_memory_s"])),
-            "window_samples": str(self._engine.window_samples),
-            "window_s": _fmt(float(self._values["window_s"])),
-            "sample_period_s": _fmt(self._engine.period_s or math.nan),
+            **engine_values(self._engine, status),
             "rate_tc1_hz": _fmt(self._sensors[0].rate_hz),
             "rate_tc2_hz": _fmt(self._sensors[1].rate_hz),
             "received_tc1": str(self._sensors[0].received),
@@ -546,25 +536,8 @@ class CompensatorNode(Node):
             "duplicates": str(counters.duplicates),
             "invalid_tc1": str(self._sensors[0].invalid),
             "invalid_tc2": str(self._sensors[1].invalid),
-            "gaps": str(self._engine.counters["gaps"]),
             "published": str(self._published),
-            "fit_error_pct": _fmt(status.fit_error_pct if status else math.nan),
-            "noise_floor_pct": _fmt(status.noise_floor_pct if status else math.nan),
-            "model_error_pct": _fmt(status.model_error_pct if status else math.nan),
-            "condition": _fmt(estimate.condition if estimate else math.nan),
-            "latest_tau1_s": _fmt(estimate.tau1 if estimate else math.nan),
-            "latest_tau2_s": _fmt(estimate.tau2 if estimate else math.nan),
-            # 95 % confidence intervals, from estimators that give them (ml-eiv).
-            **{
-                f"tau{i}_ci_{end}_s": _fmt(
-                    estimate.params.get(f"tau{i}_ci_{end}", math.nan) if estimate else math.nan
-                )
-                for i in (1, 2)
-                for end in ("low", "high")
-            },
-            "estimate_accepted": str(bool(status and status.accepted)).lower(),
             "estimate_age_s": _fmt(now - self._accepted_at),
-            "last_reason": status.reason if status else "",
             **self._diagnosis_values(now),
             **self._latency.summary(),
         }
@@ -614,10 +587,6 @@ class CompensatorNode(Node):
         for sensor in self._sensors:
             sensor.invalid_since_report = 0
         self._latency.new_period()
-
-
-def _fmt(value: float) -> str:
-    return "nan" if not math.isfinite(value) else f"{value:.6g}"
 
 
 class LatencyHistogram:

@@ -1,0 +1,119 @@
+"""End-to-end rate of ``tcomp process`` against the plain rosbags per-message loop.
+
+Generates (once, cached in ``out/bench_process/``) a two-sensor 5 kHz bag of ``--minutes``
+minutes (10 by default: 3 M pairs, 6 M messages; a seeded sinusoid plus noise through the two
+first-order lags), written with the bulk encoder. Then, in the same run:
+
+- ``tcomp process`` end to end (read, pair, estimate, reconstruct, write a bag with the inputs,
+  gas_temperature and the tau history; no diagnosis), pairs per second and peak memory;
+- the plain loop ``for c, t, raw in reader.messages(): typestore.deserialize_cdr(raw, ...)``
+  over the first ``--loop-messages`` messages (200 k by default, it is slow), messages per
+  second converted to pairs per second (two messages per pair).
+
+Usage: ``python bench/bench_process.py [--minutes 10] [--compress]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+
+from tcomp_core.io import DEFAULT_TOPICS, TEMPERATURE_TYPE, _offered_qos
+from tcomp_core.process import ProcessConfig, encode, process
+from tcomp_core.process.mcap_write import McapBagWriter
+
+RATE_HZ = 5000
+TAU = (0.0238, 0.1168)
+START_NS = 1_700_000_000 * 1_000_000_000
+BLOCK = 5_000
+
+
+def make_bag(path: Path, minutes: float, seed: int = 7) -> Path:
+    """Write the benchmark bag block by block (bounded memory)."""
+    rng = np.random.default_rng(seed)
+    count = round(minutes * 60 * RATE_HZ)
+    dt = 1.0 / RATE_HZ
+    poles = [np.exp(-dt / tau) for tau in TAU]
+    states = [None, None]
+    writer = McapBagWriter(path, compress=True)
+    qos = _offered_qos()
+    channels = [writer.add_channel(topic, TEMPERATURE_TYPE, qos) for topic in DEFAULT_TOPICS[:2]]
+    for start in range(0, count, BLOCK):
+        index = np.arange(start, min(start + BLOCK, count))
+        time_s = index * dt
+        gas = 300.0 + 50.0 * np.sin(2 * np.pi * 10.0 * time_s) + 20.0 * np.sin(2 * np.pi * time_s)
+        stamps = START_NS + index * (1_000_000_000 // RATE_HZ)
+        for k, (pole, channel) in enumerate(zip(poles, channels, strict=True)):
+            zi = states[k] if states[k] is not None else np.array([pole * gas[0]])
+            measured, states[k] = signal.lfilter([1 - pole], [1, -pole], gas, zi=zi)
+            measured = measured + rng.normal(0.0, 0.3, measured.size)
+            writer.write_rows(channel, stamps, encode(stamps, measured, 0.0, "probe"))
+    return writer.close()
+
+
+def plain_loop_rate(bag: Path, limit: int) -> tuple[float, int]:
+    """Messages per second of rosbags' per-message deserialization, first ``limit`` messages."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    count = 0
+    started = time.perf_counter()
+    with Reader(bag) as reader:
+        for connection, _, raw in reader.messages():
+            message = typestore.deserialize_cdr(raw, connection.msgtype)
+            _ = (message.header.stamp.sec, message.header.stamp.nanosec, message.temperature)
+            count += 1
+            if count >= limit:
+                break
+    return count / (time.perf_counter() - started), count
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=10.0)
+    parser.add_argument("--loop-messages", type=int, default=200_000)
+    parser.add_argument("--compress", action="store_true", help="zstd output chunks")
+    parser.add_argument("--cache", type=Path, default=Path("out/bench_process"))
+    args = parser.parse_args(argv)
+    bag = args.cache / f"sine_5khz_{args.minutes:g}min"
+    if not (bag / "metadata.yaml").is_file():
+        shutil.rmtree(bag, ignore_errors=True)
+        bag.parent.mkdir(parents=True, exist_ok=True)
+        started = time.perf_counter()
+        make_bag(bag, args.minutes)
+        print(f"generated {bag} in {time.perf_counter() - started:.1f} s")
+    size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
+    with tempfile.TemporaryDirectory() as tmp:
+        output = Path(tmp) / "processed"
+        config = ProcessConfig(diagnose=False, compress=args.compress)
+        result = process(bag, output, config)
+        out_mb = sum(f.stat().st_size for f in output.iterdir()) / 1e6
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    loop_rate, looped = plain_loop_rate(bag, args.loop_messages)
+    rate = result.pairs_per_s
+    print(f"bag: {bag} ({size_mb:.0f} MB), {result.pairs} pairs, {2 * result.pairs} messages")
+    print(f"{'what':<44} {'pairs/s':>12} {'seconds':>9}")
+    print(f"{'tcomp process end to end':<44} {rate:>12.4g} {result.seconds:>9.2f}")
+    print(
+        f"{f'plain rosbags loop (first {looped} messages)':<44} {loop_rate / 2:>12.4g} "
+        f"{looped / loop_rate:>9.2f}"
+    )
+    print(f"speed-up over the plain loop: {rate / (loop_rate / 2):.1f}x")
+    print(
+        f"output {out_mb:.0f} MB ({'zstd' if args.compress else 'uncompressed'}); "
+        f"{result.estimates} estimates, tau = {result.tau}; peak RSS {peak_mb:.0f} MB"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

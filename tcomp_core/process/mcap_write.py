@@ -1,0 +1,396 @@
+"""Fast rosbag2 (version 9) MCAP writer: chunks built from numpy arrays of message records.
+
+The file has the layout rosbags writes (and ``ros2 bag``, Foxglove, PlotJuggler, the ``mcap``
+and ``rosbags`` readers read): header (profile ``ros2``); schema and channel records before the
+first chunk that uses them (``ros2msg`` definitions, ``offered_qos_profiles`` channel metadata);
+chunks, each followed by one MessageIndex per channel; a ``rosbag2`` metadata record; DataEnd;
+the summary (schemas, channels, chunk indexes, metadata index, statistics, summary offsets) and
+the footer. ``metadata.yaml`` is written last, so a bag without it was not finished.
+
+Messages arrive as blocks (one row per message, of one size) and are copied into the chunk
+buffer a block at a time; message indexes are numpy arrays. CRCs are left 0 ("not computed",
+allowed by the MCAP specification).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+from io import StringIO
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .mcap_read import MAGIC, MESSAGE_PREFIX
+
+__all__ = ["CHUNK_BYTES", "McapBagWriter"]
+
+#: Uncompressed size at which a chunk is closed, bytes.
+CHUNK_BYTES = 4 << 20
+_RECORD = np.dtype(
+    [
+        ("opcode", "u1"),
+        ("length", "<u8"),
+        ("channel", "<u2"),
+        ("sequence", "<u4"),
+        ("log_time", "<u8"),
+        ("publish_time", "<u8"),
+    ]
+)
+_MAX_TIME = 2**64 - 1
+
+
+def _string(text: str | bytes) -> bytes:
+    data = text.encode() if isinstance(text, str) else text
+    return struct.pack("<I", len(data)) + data
+
+
+def _record(opcode: int, body: bytes) -> bytes:
+    return struct.pack("<BQ", opcode, len(body)) + body
+
+
+def _qos_yaml(profiles: Sequence[Any]) -> tuple[str, Any]:
+    """Offered QoS as rosbag2 stores it: the channel metadata string and the yaml structure."""
+    from rosbags.rosbag2.metadata import dump_qos_v9
+    from ruamel.yaml import YAML
+
+    dumped = dump_qos_v9(list(profiles))
+    stream = StringIO()
+    yaml = YAML(typ="safe")
+    yaml.default_flow_style = False
+    yaml.dump(dumped, stream)
+    return stream.getvalue().strip(), dumped
+
+
+@dataclass
+class _Channel:
+    id: int
+    topic: str
+    msgtype: str
+    schema_id: int
+    qos_text: str
+    qos: Any
+    digest: str
+    count: int = 0
+    written: bool = False
+
+
+@dataclass
+class _ChunkIndex:
+    start: int
+    end: int
+    offset: int
+    length: int
+    index_offsets: dict[int, int]
+    index_length: int
+    compressed: int
+    uncompressed: int
+
+
+class McapBagWriter:
+    """Write a rosbag2 MCAP bag directory block by block.
+
+    Parameters
+    ----------
+    path : Path
+        Bag directory to create (must not exist); the file inside is ``<name>.mcap``.
+    compress : bool
+        zstd-compress the chunks (level 1).
+    chunk_bytes : int
+        Uncompressed size at which a chunk is closed.
+    """
+
+    def __init__(self, path: Path, *, compress: bool = False, chunk_bytes: int = CHUNK_BYTES):
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = Path(path)
+        self._typestore = get_typestore(Stores.ROS2_JAZZY)
+        self._compression = "zstd" if compress else ""
+        self._compressor = None
+        if compress:
+            import zstandard
+
+            self._compressor = zstandard.ZstdCompressor(level=1)
+        self._chunk_bytes = chunk_bytes
+        self.path.mkdir(parents=True)
+        self.file = self.path / f"{self.path.name}.mcap"
+        self._handle = self.file.open("xb")
+        self._schemas: dict[str, tuple[int, str]] = {}  # msgtype -> (id, definition)
+        self._channels: list[_Channel] = []
+        self._chunks: list[_ChunkIndex] = []
+        self._blocks: list[tuple[int, NDArray[np.uint8]]] = []
+        self._pending_bytes = 0
+        self._start = _MAX_TIME
+        self._end = 0
+        self._write(MAGIC + _record(0x01, _string("ros2") + _string("tcomp process")))
+
+    def _write(self, data: bytes | memoryview) -> None:
+        self._handle.write(data)
+
+    @property
+    def message_count(self) -> int:
+        """Messages written so far (all channels)."""
+        return sum(channel.count for channel in self._channels)
+
+    def add_channel(self, topic: str, msgtype: str, qos: Sequence[Any] = ()) -> int:
+        """Register a topic; returns its channel id for :meth:`write_rows` and friends."""
+        if msgtype not in self._schemas:
+            definition, _ = self._typestore.generate_msgdef(msgtype, ros_version=2)
+            self._schemas[msgtype] = (len(self._schemas) + 1, definition)
+        qos_text, qos_yaml = _qos_yaml(qos)
+        channel = _Channel(
+            id=len(self._channels) + 1,
+            topic=topic,
+            msgtype=msgtype,
+            schema_id=self._schemas[msgtype][0],
+            qos_text=qos_text,
+            qos=qos_yaml,
+            digest=self._typestore.hash_rihs01(msgtype),
+        )
+        self._channels.append(channel)
+        return channel.id
+
+    def _schema_record(self, msgtype: str) -> bytes:
+        schema_id, definition = self._schemas[msgtype]
+        return _record(
+            0x03,
+            struct.pack("<H", schema_id)
+            + _string(msgtype)
+            + _string("ros2msg")
+            + _string(definition),
+        )
+
+    def _channel_record(self, channel: _Channel) -> bytes:
+        metadata = _string("offered_qos_profiles") + _string(channel.qos_text)
+        return _record(
+            0x04,
+            struct.pack("<HH", channel.id, channel.schema_id)
+            + _string(channel.topic)
+            + _string("cdr")
+            + struct.pack("<I", len(metadata))
+            + metadata,
+        )
+
+    # -- messages ----------------------------------------------------------------------------
+    def write_rows(
+        self, channel_id: int, log_times: NDArray[np.int64], rows: NDArray[np.uint8]
+    ) -> None:
+        """Write serialized messages of one size, one per row of ``rows`` (N, L)."""
+        count, size = rows.shape
+        if count == 0:
+            return
+        records = np.empty((count, MESSAGE_PREFIX + size), np.uint8)
+        head = np.zeros(count, _RECORD)
+        head["opcode"] = 0x05
+        head["channel"] = channel_id
+        head["length"] = MESSAGE_PREFIX - 9 + size
+        head["log_time"] = log_times
+        head["publish_time"] = log_times
+        records[:, :MESSAGE_PREFIX] = head.view(np.uint8).reshape(count, MESSAGE_PREFIX)
+        records[:, MESSAGE_PREFIX:] = rows
+        self._add(channel_id, records)
+
+    def write_records(self, channel_id: int, records: NDArray[np.uint8]) -> None:
+        """Copy whole message records (N, R) read from another file onto ``channel_id``."""
+        if records.shape[0] == 0:
+            return
+        records = np.array(records, copy=True)
+        records[:, 9:11] = np.frombuffer(struct.pack("<H", channel_id), np.uint8)
+        self._add(channel_id, records)
+
+    def write_message(self, channel_id: int, log_time: int, data: bytes) -> None:
+        """Write one serialized message."""
+        self.write_rows(
+            channel_id, np.array([log_time], np.int64), np.frombuffer(data, np.uint8)[None, :]
+        )
+
+    def _add(self, channel_id: int, records: NDArray[np.uint8]) -> None:
+        channel = self._channels[channel_id - 1]
+        if not channel.written:
+            if all(not c.written for c in self._channels if c.msgtype == channel.msgtype):
+                self._write(self._schema_record(channel.msgtype))
+            self._write(self._channel_record(channel))
+            channel.written = True
+        channel.count += records.shape[0]
+        self._blocks.append((channel_id, records))
+        self._pending_bytes += records.size
+        if self._pending_bytes >= self._chunk_bytes:
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the current chunk (if it holds anything) and write it with its indexes."""
+        if not self._blocks:
+            return
+        data = b"".join(block.tobytes() for _, block in self._blocks)
+        entries: dict[int, list[NDArray[np.uint64]]] = {}
+        start, end, at = _MAX_TIME, 0, 0
+        for channel_id, block in self._blocks:
+            count, size = block.shape
+            times = np.ascontiguousarray(block[:, 15:23]).view("<u8").ravel()
+            offsets = at + np.arange(count, dtype=np.uint64) * np.uint64(size)
+            entries.setdefault(channel_id, []).append(np.column_stack((times, offsets)))
+            start, end = min(start, int(times.min())), max(end, int(times.max()))
+            at += block.size
+        self._blocks, self._pending_bytes = [], 0
+        compressed = data if self._compressor is None else self._compressor.compress(data)
+        body = (
+            struct.pack("<QQQI", start, end, len(data), 0)
+            + _string(self._compression)
+            + struct.pack("<Q", len(compressed))
+        )
+        chunk_offset = self._handle.tell()
+        self._write(_record(0x06, body + compressed))
+        chunk_length = self._handle.tell() - chunk_offset
+        index_offsets: dict[int, int] = {}
+        for channel_id, parts in entries.items():
+            table = np.concatenate(parts)
+            table = table[np.argsort(table[:, 0], kind="stable")]
+            index_offsets[channel_id] = self._handle.tell()
+            payload = table.astype("<u8").tobytes()
+            self._write(_record(0x07, struct.pack("<HI", channel_id, len(payload)) + payload))
+        self._chunks.append(
+            _ChunkIndex(
+                start=start,
+                end=end,
+                offset=chunk_offset,
+                length=chunk_length,
+                index_offsets=index_offsets,
+                index_length=self._handle.tell() - chunk_offset - chunk_length,
+                compressed=len(compressed),
+                uncompressed=len(data),
+            )
+        )
+        self._start, self._end = min(self._start, start), max(self._end, end)
+
+    # -- closing -----------------------------------------------------------------------------
+    def _bag_information(self) -> dict[str, Any]:
+        count = self.message_count
+        start = self._start if count else 0
+        duration = max(0, self._end - start) if count else 0
+        return {
+            "version": 9,
+            "storage_identifier": "mcap",
+            "relative_file_paths": [self.file.name],
+            "duration": {"nanoseconds": duration},
+            "starting_time": {"nanoseconds_since_epoch": start},
+            "message_count": count,
+            "topics_with_message_count": [
+                {
+                    "topic_metadata": {
+                        "name": channel.topic,
+                        "type": channel.msgtype,
+                        "serialization_format": "cdr",
+                        "offered_qos_profiles": channel.qos,
+                        "type_description_hash": channel.digest,
+                    },
+                    "message_count": channel.count,
+                }
+                for channel in self._channels
+            ],
+            "compression_format": "",
+            "compression_mode": "",
+            "files": [
+                {
+                    "path": self.file.name,
+                    "starting_time": {"nanoseconds_since_epoch": start},
+                    "duration": {"nanoseconds": duration},
+                    "message_count": count,
+                }
+            ],
+            "custom_data": None,
+            "ros_distro": "rosbags",
+        }
+
+    def close(self) -> Path:
+        """Write the last chunk, the summary, the footer and ``metadata.yaml``."""
+        from ruamel.yaml import YAML
+
+        self.flush()
+        yaml = YAML(typ="safe")
+        yaml.default_flow_style = False
+        information = self._bag_information()
+        stream = StringIO()
+        yaml.dump(information, stream)
+        handle = self._handle
+        metadata_start = handle.tell()
+        inner = _string("serialized_metadata") + _string(stream.getvalue().strip())
+        self._write(_record(0x0C, _string("rosbag2") + struct.pack("<I", len(inner)) + inner))
+        metadata_end = handle.tell()
+        self._write(_record(0x0F, struct.pack("<I", 0)))
+        sections: list[tuple[int, int, int]] = []  # (opcode, start, length)
+
+        def section(opcode: int, records: Sequence[bytes]) -> None:
+            if records:
+                begin = handle.tell()
+                self._write(b"".join(records))
+                sections.append((opcode, begin, handle.tell() - begin))
+
+        summary_start = handle.tell()
+        section(0x03, [self._schema_record(msgtype) for msgtype in self._schemas])
+        section(0x04, [self._channel_record(channel) for channel in self._channels])
+        section(0x08, [self._chunk_index_record(chunk) for chunk in self._chunks])
+        section(
+            0x0D,
+            [
+                _record(
+                    0x0D,
+                    struct.pack("<QQ", metadata_start, metadata_end - metadata_start)
+                    + _string("rosbag2"),
+                )
+            ],
+        )
+        section(0x0B, [self._statistics_record()])
+        offsets_start = handle.tell()
+        for opcode, begin, length in sections:
+            self._write(_record(0x0E, struct.pack("<BQQ", opcode, begin, length)))
+        self._write(_record(0x02, struct.pack("<QQI", summary_start, offsets_start, 0)) + MAGIC)
+        handle.close()
+        stream = StringIO()
+        yaml.dump({"rosbag2_bagfile_information": information}, stream)
+        temporary = self.path / "metadata.yaml.tmp"
+        temporary.write_text(stream.getvalue(), "utf8")
+        temporary.replace(self.path / "metadata.yaml")
+        return self.path
+
+    def abort(self) -> None:
+        """Close the file without summary or ``metadata.yaml`` (the bag stays unfinished)."""
+        if not self._handle.closed:
+            self._handle.close()
+
+    def _chunk_index_record(self, chunk: _ChunkIndex) -> bytes:
+        offsets = b"".join(
+            struct.pack("<HQ", channel_id, offset)
+            for channel_id, offset in chunk.index_offsets.items()
+        )
+        return _record(
+            0x08,
+            struct.pack("<QQQQ", chunk.start, chunk.end, chunk.offset, chunk.length)
+            + struct.pack("<I", len(offsets))
+            + offsets
+            + struct.pack("<Q", chunk.index_length)
+            + _string(self._compression)
+            + struct.pack("<QQ", chunk.compressed, chunk.uncompressed),
+        )
+
+    def _statistics_record(self) -> bytes:
+        counts = b"".join(struct.pack("<HQ", c.id, c.count) for c in self._channels)
+        count = self.message_count
+        return _record(
+            0x0B,
+            struct.pack(
+                "<QHIIIIQQ",
+                count,
+                len(self._schemas),
+                len(self._channels),
+                0,
+                1,
+                len(self._chunks),
+                self._start if count else 0,
+                self._end if count else 0,
+            )
+            + struct.pack("<I", len(counts))
+            + counts,
+        )

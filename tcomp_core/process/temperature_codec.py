@@ -1,0 +1,279 @@
+"""Bulk CDR codec for ``sensor_msgs/msg/Temperature``: many messages per numpy operation.
+
+A serialized Temperature (XCDR1, little endian) is, in bytes from the start of the buffer::
+
+    0   encapsulation header 00 01 00 00
+    4   int32 header.stamp.sec
+    8   uint32 header.stamp.nanosec
+    12  uint32 length of header.frame_id, including its NUL
+    16  frame_id bytes, NUL, zero padding to a multiple of 8 relative to byte 4
+    V   float64 temperature        (V = 4 + 12 + length, rounded up to 8 past byte 4)
+    V+8 float64 variance
+
+All messages with one frame id length therefore share one layout, and a block of them held as
+rows of a 2-D ``uint8`` array (one row per message, possibly a strided view into an MCAP chunk)
+is decoded with a few column copies. Rows that do not fit the layout (another encapsulation,
+big endian, a different frame id length, trailing bytes) go to the general deserializer of
+``rosbags`` one by one. :func:`encode` builds the same rows for writing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import DataError
+
+__all__ = [
+    "CDR_LE_HEADER",
+    "TEMPERATURE_TYPE",
+    "TemperatureBatch",
+    "decode_payloads",
+    "decode_rows",
+    "encode",
+    "payload_size",
+]
+
+TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
+#: Encapsulation header of little-endian plain CDR (XCDR1).
+CDR_LE_HEADER = bytes((0, 1, 0, 0))
+_NS_PER_S = 1_000_000_000
+_MAX_SEC = 2**31 - 1
+
+
+def _values_offset(frame_length: int) -> int:
+    """Byte offset of ``temperature`` for a frame id of ``frame_length`` bytes (with NUL)."""
+    end = 12 + frame_length  # relative to the payload start (after the encapsulation header)
+    return 4 + end + (-end % 8)
+
+
+def payload_size(frame_length: int) -> int:
+    """Size in bytes of a serialized Temperature whose frame id takes ``frame_length`` bytes."""
+    return _values_offset(frame_length) + 16
+
+
+@dataclass(frozen=True)
+class TemperatureBatch:
+    """Decoded Temperature messages, in the order given.
+
+    Attributes
+    ----------
+    stamps_ns : ndarray of int64, shape (N,)
+        ``header.stamp`` in nanoseconds.
+    temperature : ndarray of float64, shape (N,)
+        Degrees C.
+    variance : ndarray of float64, shape (N,)
+        Degrees C squared (0 = unknown).
+    frame_id : str
+        ``header.frame_id`` of the first message ('' when there is none).
+    fallback : int
+        How many messages the general deserializer decoded.
+    """
+
+    stamps_ns: NDArray[np.int64]
+    temperature: NDArray[np.float64]
+    variance: NDArray[np.float64]
+    frame_id: str = ""
+    fallback: int = 0
+
+    def __len__(self) -> int:
+        return int(self.stamps_ns.size)
+
+    @staticmethod
+    def concatenate(batches: Sequence[TemperatureBatch]) -> TemperatureBatch:
+        """One batch holding ``batches`` in order (the first non-empty one's frame id)."""
+        if not batches:
+            return _EMPTY
+        return TemperatureBatch(
+            np.concatenate([b.stamps_ns for b in batches]),
+            np.concatenate([b.temperature for b in batches]),
+            np.concatenate([b.variance for b in batches]),
+            next((b.frame_id for b in batches if len(b)), ""),
+            sum(b.fallback for b in batches),
+        )
+
+
+_EMPTY = TemperatureBatch(np.empty(0, np.int64), np.empty(0), np.empty(0))
+
+
+def _column(rows: NDArray[np.uint8], start: int, dtype: str) -> NDArray:
+    """Bytes ``start:start+itemsize`` of every row as a contiguous 1-D array of ``dtype``."""
+    width = np.dtype(dtype).itemsize
+    return np.ascontiguousarray(rows[:, start : start + width]).view(dtype).ravel()
+
+
+@cache
+def _typestore() -> Any:  # rosbags imported lazily
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _deserialize(data: bytes) -> tuple[int, float, float, str]:
+    """One message through rosbags' general CDR deserializer: stamp, value, variance, frame."""
+    try:
+        message = _typestore().deserialize_cdr(bytes(data), TEMPERATURE_TYPE)
+    except Exception as exc:  # rosbags raises several types for malformed bytes
+        raise DataError(
+            f"cannot deserialize a {len(data)}-byte {TEMPERATURE_TYPE} "
+            f"({type(exc).__name__}: {exc})"
+        ) from exc
+    stamp = message.header.stamp
+    return (
+        int(stamp.sec) * _NS_PER_S + int(stamp.nanosec),
+        float(message.temperature),
+        float(message.variance),
+        str(message.header.frame_id),
+    )
+
+
+def decode_rows(rows: NDArray[np.uint8]) -> TemperatureBatch:
+    """Decode serialized Temperatures of one size, one per row.
+
+    Parameters
+    ----------
+    rows : ndarray of uint8, shape (N, L)
+        Row ``i`` holds the ``L`` bytes of message ``i``; any strides (a view into a larger
+        buffer is fine).
+
+    Returns
+    -------
+    TemperatureBatch
+        In row order. Rows whose encapsulation or frame id length does not give exactly
+        ``L`` bytes in the little-endian layout are decoded by rosbags (counted in
+        ``fallback``).
+
+    Raises
+    ------
+    DataError
+        If a row that needs the general deserializer cannot be decoded by it either.
+    """
+    count, size = rows.shape
+    if count == 0:
+        return _EMPTY
+    if size < 16:
+        return _decode_slow([rows[i].tobytes() for i in range(count)])
+    header_ok = np.all(rows[:, :4] == np.frombuffer(CDR_LE_HEADER, np.uint8), axis=1)
+    lengths = _column(rows, 12, "<u4")
+    frame_length = int(lengths[0]) if header_ok[0] else int(np.median(lengths))
+    good = header_ok & (lengths == frame_length)
+    if frame_length == 0 or payload_size(frame_length) != size:
+        good[:] = False
+    if not good.any():
+        return _decode_slow([rows[i].tobytes() for i in range(count)])
+    offset = _values_offset(frame_length)
+    first = int(np.argmax(good))
+    frame_id = rows[first, 16 : 16 + frame_length - 1].tobytes().decode(errors="replace")
+    stamps = _column(rows, 4, "<i4").astype(np.int64) * _NS_PER_S + _column(rows, 8, "<u4")
+    temperature = _column(rows, offset, "<f8").astype(np.float64)
+    variance = _column(rows, offset + 8, "<f8").astype(np.float64)
+    bad = np.flatnonzero(~good)
+    for index in bad.tolist():
+        stamps[index], temperature[index], variance[index], _ = _deserialize(rows[index].tobytes())
+    if not good[0]:
+        frame_id = _deserialize(rows[0].tobytes())[3]
+    return TemperatureBatch(stamps, temperature, variance, frame_id, int(bad.size))
+
+
+def _decode_slow(payloads: Sequence[bytes]) -> TemperatureBatch:
+    decoded = [_deserialize(data) for data in payloads]
+    stamps, values, variances, frames = zip(*decoded, strict=True)
+    return TemperatureBatch(
+        np.asarray(stamps, np.int64),
+        np.asarray(values, np.float64),
+        np.asarray(variances, np.float64),
+        frames[0],
+        len(decoded),
+    )
+
+
+def decode_payloads(payloads: Sequence[bytes]) -> TemperatureBatch:
+    """Decode serialized Temperatures of any sizes (grouped by size, then :func:`decode_rows`).
+
+    Parameters
+    ----------
+    payloads : sequence of bytes, length N
+        One serialized message each.
+
+    Returns
+    -------
+    TemperatureBatch
+        In the order given.
+    """
+    if not payloads:
+        return _EMPTY
+    sizes = np.fromiter((len(p) for p in payloads), np.int64, len(payloads))
+    stamps = np.empty(sizes.size, np.int64)
+    values = np.empty(sizes.size)
+    variances = np.empty(sizes.size)
+    frame_id, fallback = "", 0
+    for size in np.unique(sizes).tolist():
+        where = np.flatnonzero(sizes == size)
+        joined = b"".join(payloads[i] for i in where.tolist())
+        batch = decode_rows(np.frombuffer(joined, np.uint8).reshape(where.size, size))
+        stamps[where], values[where], variances[where] = (
+            batch.stamps_ns,
+            batch.temperature,
+            batch.variance,
+        )
+        fallback += batch.fallback
+        if where[0] == 0:
+            frame_id = batch.frame_id
+    return TemperatureBatch(stamps, values, variances, frame_id, fallback)
+
+
+def encode(
+    stamps_ns: ArrayLike,
+    temperature: ArrayLike,
+    variance: ArrayLike | float = 0.0,
+    frame_id: str = "",
+) -> NDArray[np.uint8]:
+    """Serialize Temperatures with one frame id, one message per row.
+
+    Parameters
+    ----------
+    stamps_ns : array_like of int, shape (N,)
+        ``header.stamp``, nanoseconds, in [0, 2**31) s.
+    temperature : array_like, shape (N,)
+        Degrees C.
+    variance : array_like, shape (N,), or float
+        Degrees C squared.
+    frame_id : str
+        ``header.frame_id`` of every message.
+
+    Returns
+    -------
+    ndarray of uint8, shape (N, L)
+        Little-endian CDR, byte-identical to rosbags' ``serialize_cdr``.
+
+    Raises
+    ------
+    DataError
+        If a stamp lies outside the ``builtin_interfaces/msg/Time`` range.
+    """
+    stamps = np.asarray(stamps_ns, dtype=np.int64)
+    count = stamps.size
+    sec, nanosec = np.divmod(stamps, _NS_PER_S)
+    if count and (sec.min() < 0 or sec.max() > _MAX_SEC):
+        index = int(np.argmin(sec) if sec.min() < 0 else np.argmax(sec))
+        raise DataError(
+            f"message {index} is stamped {int(stamps[index])} ns, outside the "
+            "builtin_interfaces/msg/Time range [0, 2**31) s"
+        )
+    frame = frame_id.encode() + b"\x00"
+    offset = _values_offset(len(frame))
+    rows = np.zeros((count, offset + 16), np.uint8)
+    prefix = CDR_LE_HEADER + b"\x00" * 8 + len(frame).to_bytes(4, "little") + frame
+    rows[:, : len(prefix)] = np.frombuffer(prefix, np.uint8)
+    rows[:, 4:8] = sec.astype("<i4").view(np.uint8).reshape(count, 4)
+    rows[:, 8:12] = nanosec.astype("<u4").view(np.uint8).reshape(count, 4)
+    values = np.broadcast_to(np.asarray(temperature, "<f8"), (count,))
+    variances = np.broadcast_to(np.asarray(variance, "<f8"), (count,))
+    rows[:, offset : offset + 8] = np.ascontiguousarray(values).view(np.uint8).reshape(count, 8)
+    rows[:, offset + 8 :] = np.ascontiguousarray(variances).view(np.uint8).reshape(count, 8)
+    return rows
