@@ -791,6 +791,14 @@ def main(argv: list[str] | None = None) -> int:
         help="node pre-filter; > 0 makes every re-estimation a batch estimate over the "
         "10 000-sample window (about 7 ms here) instead of the O(1) scatter solve",
     )
+    parser.add_argument(
+        "-p",
+        "--node-param",
+        action="append",
+        default=[],
+        metavar="NAME:=VALUE",
+        help="another node parameter, e.g. -p diagnosis_period_s:=0 (repeatable)",
+    )
     parser.add_argument("--keep", action="store_true", help="keep the work directory")
     parser.add_argument(
         "--node-probe", action="store_true", help="run the node through rt_node_probe.py"
@@ -798,6 +806,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--node-profile", action="store_true", help="with --node-probe: cProfile")
     args = parser.parse_args(argv)
     NODE_PARAMETERS["prefilter_hz"] = str(float(args.prefilter_hz))
+    for item in args.node_param:
+        name, separator, value = item.partition(":=")
+        if not (name and separator):
+            parser.error(f"--node-param {item!r} is not NAME:=VALUE")
+        NODE_PARAMETERS[name] = value
     if args.quick:
         args.duration = 10.0
     factors = [float(x) for x in args.baseline_factors.split(",") if x.strip()]

@@ -37,6 +37,7 @@ from rcl_interfaces.msg import (
     ParameterDescriptor,
     SetParametersResult,
 )
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -634,7 +635,12 @@ class LatencyHistogram:
 def main(args: Sequence[str] | None = None) -> int:
     """Entry point of ``compensator_node`` (accepts ``--ros-args``)."""
     rclpy.init(args=args)
-    node = CompensatorNode()
+    try:
+        node = CompensatorNode()
+    except (ParameterException, ValueError) as exc:  # a bad value given at start
+        print(f"compensator_node: error: {exc}", file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
     try:
         spin_until_shutdown(node)
     finally:

@@ -84,3 +84,28 @@ def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, sp
     assert values["dropped"] == "0"
     assert (replay_code, compensator_code) == (0, 0), (replay_err[-2000:], compensator_err[-2000:])
     assert "Traceback" not in replay_err + compensator_err
+
+
+@pytest.mark.parametrize(
+    ("argument", "complaint"),
+    [
+        ("diagnosis_period_s:=0", "expecting type 'DOUBLE'"),
+        ("effects:=smoke", "unknown effect 'smoke'"),
+        ("method:=nope", "method='nope'"),
+    ],
+)
+def test_a_bad_parameter_at_start_is_one_clear_line(ros_domain_id, argument, complaint):
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(ros_domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    completed = subprocess.run(
+        [sys.executable, "-m", "tcomp_ros.compensator", "--ros-args", "-p", argument],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+        check=False,
+    )
+    assert completed.returncode == 1
+    assert complaint in completed.stderr
+    assert "Traceback" not in completed.stderr
