@@ -6,12 +6,14 @@ core's :class:`~tcomp_core.online.OnlineCompensator`, re-estimates τ1 and τ2 o
 publishes ``gas_temperature`` (one message per reconstructed pair, stamped with that pair's
 sample time) and ``/diagnostics`` once a second.
 
-Every ``diagnosis_period_s`` (and at once when the parameter ``effects`` changes) the longest
-gap-free stretch of the window is diagnosed in a worker process
+Every ``diagnosis_period_s`` while the first-order fit is poor or effects are set (and at once
+when the parameter ``effects`` changes) the longest gap-free stretch of the window is diagnosed
+in a worker process
 (:class:`~tcomp_core.diagnose.background.BackgroundDiagnoser`): the base model plus the requested
 effects is fitted and, when the fit is poor or effects were requested, the effect the base model
 misses most is looked for. The diagnostics carry the held-out errors with and without the
-effects and the top suspect; the published reconstruction stays first-order.
+effects and the top suspect; the published reconstruction stays first-order. A model that fits
+is not diagnosed: a job costs seconds of CPU, which a 2-core machine feels in the latency.
 
 Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
 (:mod:`~tcomp_ros.temperature_cdr`, falling back to rclpy's deserializer for other layouts), and
@@ -213,8 +215,9 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
     "diagnosis_period_s": (
         10.0,
         _descriptor(
-            "period of the background diagnosis of the window, s (0 = only when effects is "
-            "set); one job at a time, each taking seconds in a worker process",
+            "period of the background diagnosis of the window while the fit is poor or "
+            "effects is set, s (0 = only when effects changes); one job at a time, each "
+            "taking seconds in a worker process",
             floating_point_range=_float_range(0.0, 3600),
             additional_constraints=f"0 or >= {MIN_DIAGNOSIS_PERIOD_S:g}",
         ),
@@ -274,7 +277,7 @@ class CompensatorNode(Node):
         self._diagnosis_at = math.nan  # when the data of that diagnosis were taken (monotonic)
         self._submitted_at = math.nan
         # Start a job as soon as the window is long enough and the worker free.
-        self._diagnosis_wanted = self._values["diagnosis_period_s"] > 0.0 or bool(self._effects)
+        self._diagnosis_wanted = bool(self._effects)
 
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._gas_pub = self.create_publisher(Temperature, "gas_temperature", OUTPUT_QOS)
@@ -328,7 +331,17 @@ class CompensatorNode(Node):
             self._diagnosis_timer = None
         period = float(self._values["diagnosis_period_s"])
         if period > 0.0:
-            self._diagnosis_timer = self.create_timer(period, self.start_diagnosis)
+            self._diagnosis_timer = self.create_timer(period, self._periodic_diagnosis)
+
+    def _periodic_diagnosis(self) -> None:
+        """Diagnose while the first-order fit is poor or effects are set; else spare the CPU.
+
+        A job costs the worker seconds of CPU and the node the copy of the window; on a small
+        machine that shows in the publish latency, for nothing when the model fits.
+        """
+        status = self._engine.last_status
+        if self._effects or (status is not None and status.poor_fit):
+            self.start_diagnosis()
 
     def _on_set_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
         """Validate a parameter change as a whole; apply it only when every value is sound."""

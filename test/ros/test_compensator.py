@@ -481,3 +481,21 @@ def test_a_failed_diagnosis_is_reported_and_the_node_carries_on(harness):
     assert values(status)["diagnosis_error"] == "RuntimeError: no worker process could start"
     assert level(status) == "OK"
     assert float(values(status)["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
+
+
+def test_the_timer_diagnoses_only_a_poor_fit(harness):
+    good = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=9)
+    h = harness(window_s=3.0, update_period_s=0.2, diagnosis_period_s=1.0)
+    h.feed(stamps_for(good.tc1.size, good.dt), good.tc1, good.tc2)
+    h.next_diagnostics(lambda s: level(s) == "OK")
+    h.settle(2.5)  # two ticks of the diagnosis timer
+    assert math.isnan(h.node._submitted_at)  # the model fits: no job
+    bag = read_record(BAGS / "conduction_500hz")
+    poor = harness(
+        window_s=4.0, update_period_s=0.2, max_model_error_pct=5.0, diagnosis_period_s=1.0
+    )
+    poor.feed(stamps_for(2000, bag.dt), bag.tc1[:2000], bag.tc2[:2000])
+    poor.next_diagnostics(lambda s: "poor fit" in s.message, timeout=10.0)
+    assert poor.spin_until(
+        poor.executor, lambda: math.isfinite(poor.node._submitted_at), 5.0
+    )  # the fit is poor: the timer starts a job
