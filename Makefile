@@ -40,6 +40,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_accuracy.py
 	$(PY) bench/bench_reconstruction.py
 	$(PY) bench/bench_diagnose.py
+	$(PY) bench/bench_process.py
 	$(PY) bench/bench_realtime.py
 
 lint: $(STAMP)
