@@ -25,7 +25,7 @@ from .cli_track import add_track_command
 from .errors import TcompError
 from .estimators import METHODS, PHI_METHODS, Estimate, estimate
 from .estimators.mleiv import phi_from_data
-from .fusion import MODELS, fuse
+from .fusion import MODELS, fit_fusion_model, fuse
 from .io import DEFAULT_TOPICS, Record, read_record, write_series
 from .metrics import reconstruction_error_percent
 from .reconstruct import COMBINATIONS, reconstruct
@@ -340,16 +340,7 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         time=record.time,
     )
     count = recon.gas.size
-    ref = None if record.ref is None else record.ref[:count]
-    written = write_series(
-        args.output,
-        record.time[:count],
-        record.tc1[:count],
-        record.tc2[:count],
-        ref,
-        gas=recon.gas,
-        overwrite=args.force,
-    )
+    written, ref = _write_gas(args, record, recon.gas)
     print(
         f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples "
         f"(the last sample has no successor to reconstruct from), weight of tc1 "
@@ -362,6 +353,27 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
     if args.png:
         _plot_reconstruction(args, record, recon.gas, ref)
     return 0
+
+
+def _write_gas(
+    args: argparse.Namespace, record: Record, gas: np.ndarray
+) -> tuple[Path, np.ndarray | None]:
+    """Write the record's first ``gas.size`` samples with ``gas`` to ``--output``.
+
+    Returns the path written and the matching part of the reference (None without one).
+    """
+    count = gas.size
+    ref = None if record.ref is None else record.ref[:count]
+    written = write_series(
+        args.output,
+        record.time[:count],
+        record.tc1[:count],
+        record.tc2[:count],
+        ref,
+        gas=gas,
+        overwrite=args.force,
+    )
+    return written, ref
 
 
 def _plot_reconstruction(
@@ -379,10 +391,11 @@ def _reconstruct_kalman(record: Record, args: argparse.Namespace, tau1: float, t
     """``reconstruct --reconstruction kalman[-causal]``."""
     if args.postfilter_hz is not None or args.combine != "inverse-variance":
         raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
-    fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model)
-    if args.reconstruction == "kalman-causal":
-        fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=fused.model, causal=True)
-    model = fused.model
+    model, _, _ = fit_fusion_model(
+        record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model
+    )
+    causal = args.reconstruction == "kalman-causal"
+    fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=model, causal=causal)
     settings = f"q = {model.q:.4g}"
     if model.kind in ("band-limited", "periodic"):
         settings += f", {model.freq_hz:.4g} Hz, level q = {model.level_q:.4g}"
@@ -394,16 +407,7 @@ def _reconstruct_kalman(record: Record, args: argparse.Namespace, tau1: float, t
     # The last element is a prediction no sample observes: leave it out as Eq. (7) does.
     count = record.tc1.size - 1
     gas = fused.gas[:count]
-    ref = None if record.ref is None else record.ref[:count]
-    written = write_series(
-        args.output,
-        record.time[:count],
-        record.tc1[:count],
-        record.tc2[:count],
-        ref,
-        gas=gas,
-        overwrite=args.force,
-    )
+    written, ref = _write_gas(args, record, gas)
     print(f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples")
     if ref is not None:
         error = reconstruction_error_percent(ref, gas)

@@ -420,8 +420,7 @@ class OnlineCompensator:
     ) -> None:
         """Give the tracker the new samples (all but the first when ``linked``), gap by gap."""
         assert self._tracker is not None
-        breaks = np.flatnonzero(~contiguous) + 1
-        for start, stop in zip((0, *breaks), (*breaks, tc1.size), strict=True):
+        for start, stop in _gap_free_runs(contiguous):
             if start > 0 or not linked:
                 self._tracker.mark_gap()
             begin = 1 if start == 0 and linked else start
@@ -465,9 +464,9 @@ class OnlineCompensator:
         if self._config.reconstruction == "kalman" and self._fuser is not None:
             gas, variance = self._kalman(stamps, tc1, tc2, contiguous)
         else:
-            gas, variance = self._difference(tc1, tc2, steps_s, contiguous), None
-        gas = self._postfilter(gas)
-        return out_stamps, gas, np.zeros(gas.size) if variance is None else variance
+            gas = self._difference(tc1, tc2, steps_s, contiguous)
+            variance = np.zeros(gas.size)
+        return out_stamps, self._postfilter(gas), variance
 
     def _difference(
         self,
@@ -508,9 +507,8 @@ class OnlineCompensator:
         starts afresh after a gap or a lost one.
         """
         assert self._fuser is not None
-        breaks = np.flatnonzero(~contiguous) + 1
         gas, std = [], []
-        for start, stop in zip((0, *breaks), (*breaks, stamps.size), strict=True):
+        for start, stop in _gap_free_runs(contiguous):
             begin = start
             if start == 0 and self._fuser.started and self._fuser_stamp == int(stamps[0]):
                 begin = 1
@@ -688,3 +686,13 @@ class OnlineCompensator:
         sigma2 = math.sqrt(max(float(eigenvalues[0]), 0.0) / max(window.rows, 1))
         spread = float(np.std(samples[:, 1]))
         return 100.0 * sigma2 / spread if spread > 0.0 else math.nan
+
+
+def _gap_free_runs(contiguous: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """``(start, stop)`` sample ranges of a batch split at its gaps.
+
+    ``contiguous[i]`` says whether sample i+1 follows sample i without a gap, so a batch of
+    ``contiguous.size + 1`` samples splits after every False.
+    """
+    breaks = (np.flatnonzero(~contiguous) + 1).tolist()
+    return list(zip([0, *breaks], [*breaks, contiguous.size + 1], strict=True))

@@ -3,7 +3,8 @@
 Building a Python message object per sample costs more than everything else the compensator does
 per sample, so its subscriptions take the serialized bytes (``raw=True``) and its publisher sends
 bytes. The layout (XCDR1, little endian, after the 4-byte encapsulation header) is fixed but for
-the frame id:
+the frame id (the layout and its offsets are
+:mod:`tcomp_core.process.temperature_codec`'s, whose bulk codec serves ``tcomp process``):
 
     int32 sec | uint32 nanosec | uint32 len | frame_id bytes incl. NUL | pad to 8 |
     float64 temperature | float64 variance
@@ -16,17 +17,12 @@ from __future__ import annotations
 
 import struct
 
+from tcomp_core.process.temperature_codec import CDR_LE_HEADER, values_offset
+
 __all__ = ["Encoder", "decode", "encode"]
 
-_CDR_LE = b"\x00\x01\x00\x00"
 _HEAD = struct.Struct("<iII")
 _VALUES = struct.Struct("<dd")
-
-
-def _values_offset(frame_length: int) -> int:
-    """Byte offset of ``temperature`` in the whole buffer for a frame id of ``frame_length``."""
-    end = 12 + frame_length  # relative to the payload start (after the encapsulation header)
-    return 4 + end + (-end % 8)
 
 
 def decode(data: bytes) -> tuple[int, str, float, float]:
@@ -45,12 +41,12 @@ def decode(data: bytes) -> tuple[int, str, float, float]:
     ValueError
         If the bytes are not a little-endian CDR Temperature.
     """
-    if data[:4] != _CDR_LE:
+    if data[:4] != CDR_LE_HEADER:
         raise ValueError(f"not little-endian CDR (encapsulation {data[:4]!r})")
     if len(data) < 16:
         raise ValueError(f"{len(data)} bytes are too few for a Temperature")
     sec, nanosec, length = _HEAD.unpack_from(data, 4)
-    offset = _values_offset(length)
+    offset = values_offset(length)
     if length == 0 or offset + 16 > len(data):
         raise ValueError(f"{len(data)} bytes cannot hold a Temperature with a {length}-byte frame")
     temperature, variance = _VALUES.unpack_from(data, offset)
@@ -63,7 +59,7 @@ class Encoder:
 
     def __init__(self, frame_id: str) -> None:
         encoded = frame_id.encode() + b"\x00"
-        padding = _values_offset(len(encoded)) - 4 - 12 - len(encoded)
+        padding = values_offset(len(encoded)) - 4 - 12 - len(encoded)
         self.frame_id = frame_id
         self._frame = struct.pack("<I", len(encoded)) + encoded + b"\x00" * padding
 
@@ -71,7 +67,7 @@ class Encoder:
         """Serialized Temperature stamped ``stamp_ns`` (nanoseconds)."""
         sec, nanosec = divmod(stamp_ns, 1_000_000_000)
         return (
-            _CDR_LE
+            CDR_LE_HEADER
             + struct.pack("<iI", sec, nanosec)
             + self._frame
             + _VALUES.pack(temperature, variance)

@@ -14,6 +14,7 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 
 from tcomp_core.cli_process import add_process_command
+from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError, TcompError
 from tcomp_core.io import DEFAULT_TOPICS, read_bag, write_bag, write_csv
 from tcomp_core.online import OnlineCompensator, OnlineConfig
@@ -309,15 +310,7 @@ def test_missing_topic_and_no_pairs_are_errors(tmp_path):
 def test_diagnosis_verdict_topic(tmp_path):
     bag = _sim_bag(tmp_path / "sim", seconds=6.0, rate=500.0)
     result = process(bag, tmp_path / "out", ProcessConfig(diagnose_samples=3000))
-    assert result.verdict in (
-        "none",
-        "conduction",
-        "radiation",
-        "velocity",
-        "delay",
-        "calibration",
-        "noise_ratio",
-    )
+    assert result.verdict in ("none", *EFFECT_NAMES)
     assert result.diagnosis["samples"] == "3000"
     with Reader(tmp_path / "out") as reader:
         connection = [c for c in reader.connections if c.topic == DIAGNOSIS_TOPIC]

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..effects import EFFECT_NAMES
+from ..effects import check_effect_names
 from ..io import Record
 from .pipeline import diagnose, fit_effects
 
@@ -63,13 +63,7 @@ def parse_effects(effects: str | Sequence[str]) -> tuple[str, ...]:
     """
     if isinstance(effects, str):
         effects = [] if effects.strip() in ("", "none") else effects.split(",")
-    names = tuple(name.strip() for name in effects)
-    for name in names:
-        if name not in EFFECT_NAMES:
-            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
-    if len(set(names)) != len(names):
-        raise ValueError(f"effects {', '.join(names)} repeat an effect")
-    return names
+    return check_effect_names(name.strip() for name in effects)
 
 
 def _lower_priority() -> None:

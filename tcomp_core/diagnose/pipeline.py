@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..effects import EFFECT_NAMES, Model, make_context
+from ..effects import EFFECT_NAMES, Model, check_effect_names, make_context
 from ..effects.chain import fractional_shift
 from ..errors import EstimationError, TcompError
 from ..estimators.beta import estimate_beta_from_scatter
@@ -26,23 +26,13 @@ from ..io import Record
 from .heldout import Evaluator, heldout_error_percent
 from .prepare import PreparedData, block_length_s, prepare
 from .ranking import MAX_EFFECTS, next_round, pick
-from .residuals import analyse_failure
+from .residuals import FailureAnalysis, analyse_failure
 from .result import Diagnosis, ModelFit, Suspect
 
 __all__ = ["diagnose", "fit_effects"]
 
 #: The comparison low-pass sits this far above the slow sensor's band edge.
 CUTOFF_PER_BAND_EDGE = 1.5
-
-
-def _check_effects(names: Sequence[str]) -> tuple[str, ...]:
-    names = tuple(names)
-    for name in names:
-        if name not in EFFECT_NAMES:
-            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
-    if len(set(names)) != len(names):
-        raise ValueError(f"effects {', '.join(names)} repeat an effect")
-    return names
 
 
 def _initial_taus(data: PreparedData) -> dict[str, float]:
@@ -91,7 +81,7 @@ def _fit_base(evaluator: Evaluator, taus: dict[str, float]) -> tuple[Model, Mode
     return model, evaluator.evaluate(model)
 
 
-def _failure(evaluator: Evaluator, fit: ModelFit):
+def _failure(evaluator: Evaluator, fit: ModelFit) -> FailureAnalysis:
     data = evaluator.data
     measured = (data.tc1, data.tc2)[evaluator.slow - 1]
     keep = evaluator.scored_mask(Model(fit.effects, fit.params))
@@ -200,6 +190,15 @@ def _diagnosis(evaluator, base, failure, steps, rounds, verdict) -> Diagnosis:
     )
 
 
+def _base_fit(record: Record) -> tuple[Evaluator, Model, ModelFit, FailureAnalysis]:
+    """Prepare the record, fit and score the base model, and say where it fails."""
+    data = prepare(record)
+    taus = _initial_taus(data)
+    evaluator = _evaluator(data, taus)
+    model, base = _fit_base(evaluator, taus)
+    return evaluator, model, base, _failure(evaluator, base)
+
+
 def diagnose(
     record: Record,
     *,
@@ -229,12 +228,8 @@ def diagnose(
     EstimationError
         If not even the base model can be fitted.
     """
-    candidates = _check_effects(candidates)
-    data = prepare(record)
-    taus = _initial_taus(data)
-    evaluator = _evaluator(data, taus)
-    model, base = _fit_base(evaluator, taus)
-    failure = _failure(evaluator, base)
+    candidates = check_effect_names(candidates)
+    evaluator, model, base, failure = _base_fit(record)
     steps, rounds = _staircase(evaluator, model, base, candidates, max_effects)
     steps[-1] = evaluator.refit_whole(steps[-1])
     verdict = steps[1].effects[0] if len(steps) > 1 else "none"
@@ -253,12 +248,8 @@ def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
     EstimationError
         If a fit fails.
     """
-    effects = _check_effects(effects)
-    data = prepare(record)
-    taus = _initial_taus(data)
-    evaluator = _evaluator(data, taus)
-    model, base = _fit_base(evaluator, taus)
-    failure = _failure(evaluator, base)
+    effects = check_effect_names(effects)
+    evaluator, model, base, failure = _base_fit(record)
     steps, suspects = [base], []
     for name in effects:
         try:

@@ -8,6 +8,8 @@ Each effect is one module with its own parameters (:class:`~tcomp_core.effects.b
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from .base import Effect, FitContext, ParamSpec
 from .calibration import Calibration
 from .conduction import Conduction
@@ -24,6 +26,7 @@ __all__ = [
     "FitContext",
     "Model",
     "ParamSpec",
+    "check_effect_names",
     "make_context",
 ]
 
@@ -34,3 +37,20 @@ EFFECTS: dict[str, type[Effect]] = {
 }
 #: The effect names used everywhere (API, CLI, JSON, diagnostics).
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
+
+
+def check_effect_names(names: Iterable[str]) -> tuple[str, ...]:
+    """The names as a tuple, each a known effect and none repeated.
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown effect (and the known ones) or the repetition.
+    """
+    names = tuple(names)
+    for name in names:
+        if name not in EFFECTS:
+            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"effects {', '.join(names)} repeat an effect")
+    return names

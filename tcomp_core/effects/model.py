@@ -80,12 +80,10 @@ def make_context(
 
 
 def _effect(name: str) -> Effect:
+    """A new instance of a checked effect name."""
     from . import EFFECTS  # the registry imports this module
 
-    try:
-        return EFFECTS[name]()
-    except KeyError:
-        raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECTS)}") from None
+    return EFFECTS[name]()
 
 
 @dataclass(frozen=True)
@@ -104,9 +102,9 @@ class Model:
     params: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        names = tuple(self.effects)
-        if len(set(names)) != len(names):
-            raise ValueError(f"effects {names!r} repeat an effect")
+        from . import check_effect_names  # the registry imports this module
+
+        names = check_effect_names(self.effects)
         object.__setattr__(self, "effects", names)
         object.__setattr__(self, "_instances", tuple(_effect(name) for name in names))
         object.__setattr__(self, "params", dict(self.params))

@@ -295,9 +295,6 @@ class _Tail:
         return tuple(c[part] for c in columns)
 
 
-_fmt = format_value
-
-
 def _diagnose(tail: _Tail, source: Path, gap_factor: float) -> tuple[str, dict[str, str], int]:
     """Run the diagnosis on the tail: verdict, key values, level."""
     from ..diagnose import diagnose
@@ -328,16 +325,16 @@ def _diagnose(tail: _Tail, source: Path, gap_factor: float) -> tuple[str, dict[s
         "samples": str(stamps.size),
         "first_stamp_s": f"{int(stamps[0]) * 1e-9:.9f}",
         "last_stamp_s": f"{int(stamps[-1]) * 1e-9:.9f}",
-        "base_tau1_s": _fmt(result.base.tau1),
-        "base_tau2_s": _fmt(result.base.tau2),
-        "base_error_pct": _fmt(result.base.error_pct),
+        "base_tau1_s": format_value(result.base.tau1),
+        "base_tau2_s": format_value(result.base.tau2),
+        "base_error_pct": format_value(result.base.error_pct),
         "effects": ",".join(result.final.effects) or "none",
-        "final_tau1_s": _fmt(result.final.tau1),
-        "final_tau2_s": _fmt(result.final.tau2),
-        "final_error_pct": _fmt(result.final.error_pct),
+        "final_tau1_s": format_value(result.final.tau1),
+        "final_tau2_s": format_value(result.final.tau2),
+        "final_error_pct": format_value(result.final.error_pct),
         "top_suspect": top.effect if top else "none",
-        "top_suspect_error_pct": _fmt(top.error_pct if top else math.nan),
-        "diagnosis_duration_s": _fmt(time.perf_counter() - started),
+        "top_suspect_error_pct": format_value(top.error_pct if top else math.nan),
+        "diagnosis_duration_s": format_value(time.perf_counter() - started),
     }
     return result.verdict, values, _OK if result.verdict == "none" else _WARN
 

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DataError
+from ..io import TEMPERATURE_TYPE
 
 __all__ = [
     "CDR_LE_HEADER",
@@ -37,16 +38,16 @@ __all__ = [
     "decode_rows",
     "encode",
     "payload_size",
+    "values_offset",
 ]
 
-TEMPERATURE_TYPE = "sensor_msgs/msg/Temperature"
 #: Encapsulation header of little-endian plain CDR (XCDR1).
 CDR_LE_HEADER = bytes((0, 1, 0, 0))
 _NS_PER_S = 1_000_000_000
 _MAX_SEC = 2**31 - 1
 
 
-def _values_offset(frame_length: int) -> int:
+def values_offset(frame_length: int) -> int:
     """Byte offset of ``temperature`` for a frame id of ``frame_length`` bytes (with NUL)."""
     end = 12 + frame_length  # relative to the payload start (after the encapsulation header)
     return 4 + end + (-end % 8)
@@ -54,7 +55,7 @@ def _values_offset(frame_length: int) -> int:
 
 def payload_size(frame_length: int) -> int:
     """Size in bytes of a serialized Temperature whose frame id takes ``frame_length`` bytes."""
-    return _values_offset(frame_length) + 16
+    return values_offset(frame_length) + 16
 
 
 @dataclass(frozen=True)
@@ -166,7 +167,7 @@ def decode_rows(rows: NDArray[np.uint8]) -> TemperatureBatch:
         good[:] = False
     if not good.any():
         return _decode_slow([rows[i].tobytes() for i in range(count)])
-    offset = _values_offset(frame_length)
+    offset = values_offset(frame_length)
     first = int(np.argmax(good))
     frame_id = rows[first, 16 : 16 + frame_length - 1].tobytes().decode(errors="replace")
     stamps = _column(rows, 4, "<i4").astype(np.int64) * _NS_PER_S + _column(rows, 8, "<u4")
@@ -266,7 +267,7 @@ def encode(
             "builtin_interfaces/msg/Time range [0, 2**31) s"
         )
     frame = frame_id.encode() + b"\x00"
-    offset = _values_offset(len(frame))
+    offset = values_offset(len(frame))
     rows = np.zeros((count, offset + 16), np.uint8)
     prefix = CDR_LE_HEADER + b"\x00" * 8 + len(frame).to_bytes(4, "little") + frame
     rows[:, : len(prefix)] = np.frombuffer(prefix, np.uint8)
