@@ -34,6 +34,8 @@ setup(
         "scipy>=1.11",
         "rosbags>=0.10",
         "mcap>=1.1",
+        "zstandard>=0.22",  # MCAP chunk compression (tcomp process reads and writes chunks)
+        "lz4>=4.0",
         "matplotlib>=3.8",
     ],
     extras_require={

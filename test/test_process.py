@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import shutil
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
+from sim_records import make_pair
 
 from tcomp_core.cli_process import add_process_command
 from tcomp_core.effects import EFFECT_NAMES
@@ -361,16 +363,7 @@ def test_cli_refuses_existing_output_without_force(tmp_path, capsys):
 
 
 def test_unmatched_samples_are_dropped_and_reported(tmp_path):
-    data = simulate_pair(
-        "sinusoid",
-        tau1=0.0238,
-        tau2=0.1168,
-        dt=0.002,
-        duration=3.0,
-        noise_percent=1.0,
-        phi=1.0,
-        seed=5,
-    )
+    data = make_pair("sinusoid", duration=3.0, noise_percent=1.0, seed=5)
     bag = write_bag(
         tmp_path / "in",
         data.time,
@@ -394,3 +387,144 @@ def test_unmatched_samples_are_dropped_and_reported(tmp_path):
     result = process(tmp_path / "holes", tmp_path / "out", FAST)
     assert result.pairs == 1499 and result.counters["unmatched_tc1"] == 1
     assert any("dropped 1 tc1 samples" in w for w in result.warnings)
+
+
+# -- copying the inputs -----------------------------------------------------------------------
+BEST_EFFORT_QOS = """- history: 1
+  depth: 5
+  reliability: 2
+  durability: 2
+  deadline:
+    sec: 0
+    nsec: 0
+  lifespan:
+    sec: 0
+    nsec: 0
+  liveliness: 1
+  liveliness_lease_duration:
+    sec: 0
+    nsec: 0
+  avoid_ros_namespace_conventions: false"""
+
+
+def _mcap_file(path: Path, topics: list[str], stamps, values: dict[str, np.ndarray]) -> None:
+    """One lz4-chunked MCAP file written by the ``mcap`` package, channels in ``topics`` order."""
+    from mcap.writer import CompressionType, Writer
+
+    definition, _ = TYPESTORE.generate_msgdef(TEMPERATURE, ros_version=2)
+    with path.open("wb") as handle:
+        writer = Writer(handle, compression=CompressionType.LZ4, chunk_size=20_000)
+        writer.start(profile="ros2", library="test")
+        schema = writer.register_schema(TEMPERATURE, "ros2msg", definition.encode())
+        channels = {
+            topic: writer.register_channel(
+                topic, "cdr", schema, metadata={"offered_qos_profiles": BEST_EFFORT_QOS}
+            )
+            for topic in topics
+        }
+        rows = {topic: encode(stamps, values[topic], 0.0, "probe") for topic in topics}
+        for index, stamp in enumerate(stamps.tolist()):
+            for topic in topics:
+                writer.add_message(
+                    channels[topic], stamp, rows[topic][index].tobytes(), stamp, sequence=index
+                )
+        writer.finish()
+
+
+def test_multi_file_lz4_bag_with_other_channel_ids_and_qos_is_copied_whole(tmp_path):
+    data = make_pair("multisine", duration=8.0, noise_percent=1.0, seed=5)
+    stamps = START_NS + np.arange(data.time.size, dtype=np.int64) * 2_000_000
+    tc1, tc2 = DEFAULT_TOPICS[:2]
+    values = {tc1: data.tc1, tc2: data.tc2}
+    bag = tmp_path / "two_files"
+    bag.mkdir()
+    half = stamps.size // 2
+    # The second file registers the topics the other way round: channel ids swap.
+    _mcap_file(bag / "a.mcap", [tc1, tc2], stamps[:half], {k: v[:half] for k, v in values.items()})
+    _mcap_file(bag / "b.mcap", [tc2, tc1], stamps[half:], {k: v[half:] for k, v in values.items()})
+    (bag / "metadata.yaml").write_text(
+        "rosbag2_bagfile_information:\n  relative_file_paths:\n  - a.mcap\n  - b.mcap\n"
+    )
+    result = process(bag, tmp_path / "out", FAST)
+    assert result.pairs == stamps.size and result.warnings == []
+    # The same samples as one ordinary single-file bag give the same results, bit for bit.
+    single = write_bag(tmp_path / "single", data.time, values, start_ns=START_NS, frame_id="probe")
+    reference = process(single, tmp_path / "out_single", FAST)
+    assert result.tau == reference.tau and result.gas == reference.gas
+    gas_of = {
+        bag: read_bag(bag, topics=("/gas_temperature", "/gas_temperature", None)).tc1
+        for bag in (tmp_path / "out", tmp_path / "out_single")
+    }
+    assert np.array_equal(gas_of[tmp_path / "out"], gas_of[tmp_path / "out_single"])
+    _check_outputs_open_any_qos(tmp_path / "out")
+    with Reader(tmp_path / "out") as reader:
+        connections = {c.topic: c for c in reader.connections}
+        for topic in (tc1, tc2):
+            qos = connections[topic].ext.offered_qos_profiles[0]
+            assert (qos.depth, qos.reliability.name) == (5, "BEST_EFFORT")  # as recorded
+        assert connections["/gas_temperature"].ext.offered_qos_profiles[0].depth == 10
+        copied = {
+            topic: [
+                TYPESTORE.deserialize_cdr(raw, TEMPERATURE).temperature
+                for _, _, raw in reader.messages([connections[topic]])
+            ]
+            for topic in (tc1, tc2)
+        }
+    for topic in (tc1, tc2):
+        assert np.array_equal(copied[topic], values[topic])  # every message, on its own topic
+
+
+def _check_outputs_open_any_qos(bag: Path) -> None:
+    with (bag / f"{bag.name}.mcap").open("rb") as handle:
+        reader = make_reader(handle)
+        times = [message.log_time for _, _, message in reader.iter_messages(log_time_order=True)]
+    assert times == sorted(times)
+    with Reader(bag) as reader:
+        for connection, _, raw in reader.messages():
+            TYPESTORE.deserialize_cdr(raw, connection.msgtype)
+
+
+def test_copied_records_are_byte_identical_and_keep_the_input_channel_ids(tmp_path):
+    source = BAGS / "ramp_500hz"
+    process(source, tmp_path / "out", FAST)
+
+    def records(bag: Path) -> dict[str, list[tuple[int, int, bytes]]]:
+        with next(bag.glob("*.mcap")).open("rb") as handle:
+            reader = make_reader(handle)
+            found: dict[str, list[tuple[int, int, bytes]]] = {}
+            for _, channel, message in reader.iter_messages():
+                found.setdefault(channel.topic, []).append(
+                    (channel.id, message.log_time, message.data)
+                )
+        return found
+
+    before, after = records(source), records(tmp_path / "out")
+    for topic in DEFAULT_TOPICS:
+        assert after[topic] == before[topic]
+
+
+def test_a_failing_write_ends_the_run_with_its_error_and_no_thread_left(tmp_path, monkeypatch):
+    from tcomp_core.process import mcap_write
+
+    threads = {thread.name for thread in threading.enumerate()}
+
+    def disk_full(*_):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(mcap_write.McapBagWriter, "_write_chunk", disk_full)
+    with pytest.raises(OSError, match="No space left"):
+        process(BAGS / "rig_sine_5khz", tmp_path / "out", FAST)
+    assert not (tmp_path / "out" / "metadata.yaml").exists()  # left unfinished, not passed off
+    assert {thread.name for thread in threading.enumerate()} == threads
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_the_bag_reads_back_the_same_compressed_or_not(tmp_path, compress):
+    config = ProcessConfig(diagnose=False, compress=compress)
+    result = process(BAGS / "rig_sine_5khz", tmp_path / "out", config)
+    gas = read_bag(tmp_path / "out", topics=("/gas_temperature", "/gas_temperature", None))
+    assert gas.tc1.size == result.gas > 0
+    with next((tmp_path / "out").glob("*.mcap")).open("rb") as handle:
+        chunks = make_reader(handle).get_summary().chunk_indexes
+    assert {chunk.compression for chunk in chunks} == {"zstd" if compress else ""}
+    assert len(chunks) > 1

@@ -30,16 +30,20 @@ anything this reader does not recognise.
 
 from __future__ import annotations
 
+import queue
 import struct
+import threading
 from collections.abc import Iterator, Sequence
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DataError
+from .rows import column
 
 __all__ = [
     "MAGIC",
@@ -64,7 +68,7 @@ LOOSE_GROUP = 10_000
 
 def log_times(records: NDArray[np.uint8]) -> NDArray[np.int64]:
     """Log times (ns) of message records, shape (N,), from rows of whole records (N, R)."""
-    return np.ascontiguousarray(records[:, 15:23]).view("<u8").ravel().astype(np.int64)
+    return column(records, 15, "<u8").astype(np.int64)
 
 
 def payloads(records: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -127,6 +131,21 @@ def _string(body: bytes | memoryview, at: int) -> tuple[str, int]:
     return bytes(body[at : at + length]).decode(errors="replace"), at + length
 
 
+def _channel_metadata(body: bytes | memoryview, at: int) -> dict[str, str]:
+    """The metadata map of a channel record whose message encoding starts at ``at``."""
+    try:
+        _, at = _string(body, at)
+        (length,) = struct.unpack_from("<I", body, at)
+        at += 4
+        end, metadata = at + length, {}
+        while at < end:
+            key, at = _string(body, at)
+            metadata[key], at = _string(body, at)
+    except struct.error:  # a channel record without (or with a cut) metadata map
+        return {}
+    return metadata
+
+
 def _decompress(data: bytes, compression: str, size: int, partial: bool) -> bytes:
     """Decompress a chunk; with ``partial`` whatever a cut-off stream yields."""
     if compression == "":
@@ -146,6 +165,82 @@ def _decompress(data: bytes, compression: str, size: int, partial: bool) -> byte
     raise DataError(f"unsupported MCAP chunk compression {compression!r}")
 
 
+#: Records read (and chunks decompressed) ahead of the one being split, on a thread.
+READ_AHEAD = 8
+
+
+def _unpack_chunk(body: bytes, partial: bool = False) -> bytes:
+    """The records of a chunk record's body, decompressed; raises what the codec raises."""
+    _, _, raw_size, _ = struct.unpack_from("<QQQI", body, 0)
+    compression, at = _string(body, 28)
+    (compressed_size,) = struct.unpack_from("<Q", body, at)
+    return _decompress(body[at + 8 : at + 8 + compressed_size], compression, raw_size, partial)
+
+
+_RawRecord = tuple[bytes, bytes, "bytes | Exception | None"]
+
+
+def _raw_records(handle: BinaryIO) -> Iterator[_RawRecord]:
+    """Head, body and (for a whole chunk) the decompressed records or the failure, in order.
+
+    The last item has a head shorter than a record head (the end of the file).
+    """
+    while True:
+        head = handle.read(_HEAD.size)
+        if len(head) < _HEAD.size:
+            yield head, b"", None
+            return
+        opcode, length = _HEAD.unpack(head)
+        body = handle.read(length)
+        unpacked: bytes | Exception | None = None
+        if opcode == _CHUNK and len(body) == length:
+            try:
+                unpacked = _unpack_chunk(body)
+            except Exception as exc:  # judged by the reader, in order, like any other record
+                unpacked = exc
+        yield head, body, unpacked
+
+
+def _read_ahead(items: Iterator[_RawRecord], depth: int) -> Iterator[_RawRecord]:
+    """Run ``items`` on a thread, at most ``depth`` items ahead of the consumer.
+
+    File reads and zstd/lz4 decompression release the GIL, so on two cores the next chunks are
+    read and decompressed while the current one is decoded. Closing this generator early
+    stops the thread.
+    """
+    ahead: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+
+    def produce() -> None:
+        try:
+            for item in items:
+                while not stop.is_set():
+                    try:
+                        ahead.put(("item", item), timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            ahead.put(("end", None))
+        except BaseException as exc:  # handed to the consumer, raised there
+            ahead.put(("error", exc))
+
+    thread = threading.Thread(target=produce, name="mcap-read-ahead", daemon=True)
+    thread.start()
+    try:
+        while True:
+            kind, value = ahead.get()
+            if kind == "end":
+                return
+            if kind == "error":
+                raise value
+            yield value
+    finally:
+        stop.set()
+        thread.join()
+
+
 class McapScan:
     """Read the messages of chosen topics from MCAP files, chunk by chunk.
 
@@ -162,6 +257,9 @@ class McapScan:
     ----------
     types : dict of str to set of str
         Every topic seen so far and its message types (for messages about missing topics).
+    metadata : dict of str to dict of str to str
+        Channel metadata of the wanted topics (``offered_qos_profiles`` in a rosbag2 bag), as
+        first seen.
     truncation : Truncation or None
         Set when reading stopped early.
     """
@@ -171,6 +269,7 @@ class McapScan:
         self.wanted = set(topics)
         self.msgtype = msgtype
         self.types: dict[str, set[str]] = {}
+        self.metadata: dict[str, dict[str, str]] = {}
         self.truncation: Truncation | None = None
         self.bytes_total = sum(path.stat().st_size for path in self.files)
         self.bytes_read = 0
@@ -184,13 +283,15 @@ class McapScan:
 
     def _channel(self, body: bytes | memoryview, file: Path) -> None:
         channel_id, schema_id = struct.unpack_from("<HH", body, 0)
-        topic, _ = _string(body, 4)
+        topic, at = _string(body, 4)
         msgtype = self._schemas.get(schema_id, "")
         self.types.setdefault(topic, set()).add(msgtype or "(no schema)")
         if topic in self.wanted:
             if msgtype != self.msgtype:
                 raise DataError(f"{file}: topic {topic} carries {msgtype!r}, not {self.msgtype}")
             self._channels[channel_id] = topic
+            if topic not in self.metadata:
+                self.metadata[topic] = _channel_metadata(body, at)
 
     def __iter__(self) -> Iterator[ChunkData]:
         for file in self.files:
@@ -218,71 +319,83 @@ class McapScan:
         pending: tuple[int, bytes] | None = None  # a chunk waiting for its message indexes
         index: dict[int, NDArray[np.uint64]] = {}
         loose: list[tuple[int, bytes]] = []  # messages outside chunks
-        while True:
-            head = handle.read(_HEAD.size)
-            if len(head) < _HEAD.size:
+        records = _read_ahead(_raw_records(handle), READ_AHEAD)
+        with closing(records):  # stops the read-ahead thread however this ends
+            for head, body, unpacked in records:
+                if len(head) < _HEAD.size:
+                    if pending is not None:
+                        yield self._split(file, *pending, index)
+                    yield from self._loose(file, offset, loose)
+                    self._stop(file, offset, size, "the file ends before its DataEnd record")
+                    return
+                opcode, length = _HEAD.unpack(head)
+                self.bytes_read += len(head) + len(body)
+                if opcode == _MESSAGE_INDEX and pending is not None and len(body) == length:
+                    (channel_id,) = struct.unpack_from("<H", body, 0)
+                    if channel_id in self._channels:
+                        entries = np.frombuffer(body, "<u8", offset=6).reshape(-1, 2)
+                        index[channel_id] = entries[:, 1]
+                    offset += _HEAD.size + length
+                    continue
                 if pending is not None:
                     yield self._split(file, *pending, index)
-                yield from self._loose(file, offset, loose)
-                self._stop(file, offset, size, "the file ends before its DataEnd record")
-                return
-            opcode, length = _HEAD.unpack(head)
-            body = handle.read(length)
-            self.bytes_read += len(head) + len(body)
-            if opcode == _MESSAGE_INDEX and pending is not None and len(body) == length:
-                (channel_id,) = struct.unpack_from("<H", body, 0)
-                if channel_id in self._channels:
-                    entries = np.frombuffer(body, "<u8", offset=6).reshape(-1, 2)
-                    index[channel_id] = entries[:, 1]
-                offset += _HEAD.size + length
-                continue
-            if pending is not None:
-                yield self._split(file, *pending, index)
-                pending, index = None, {}
-            if opcode != _MESSAGE and loose:
-                yield from self._loose(file, offset, loose)
-                loose = []
-            if len(body) < length:
-                if opcode == _CHUNK:
-                    partial = self._chunk_body(file, offset, size, body, partial=True)
-                    if partial is not None:
-                        yield self._split(file, offset, partial, {})
-                self._stop(
-                    file,
-                    offset,
-                    size,
-                    f"record (opcode 0x{opcode:02x}) of {length} bytes is cut off after "
-                    f"{len(body)}",
-                )
-                return
-            if opcode in (_DATA_END, _FOOTER):
-                return
-            if opcode == _SCHEMA:
-                self._schema(body)
-            elif opcode == _CHANNEL:
-                self._channel(body, file)
-            elif opcode == _CHUNK:
-                data = self._chunk_body(file, offset, size, body, partial=False)
-                if data is None:
-                    return
-                pending = (offset, data)
-            elif opcode == _MESSAGE:
-                loose.append((offset, head + body))
-                if len(loose) >= LOOSE_GROUP:
+                    pending, index = None, {}
+                if opcode != _MESSAGE and loose:
                     yield from self._loose(file, offset, loose)
                     loose = []
-            offset += _HEAD.size + length
+                if len(body) < length:
+                    if opcode == _CHUNK:
+                        partial = self._chunk_body(file, offset, size, body, partial=True)
+                        if partial is not None:
+                            yield self._split(file, offset, partial, {})
+                    self._stop(
+                        file,
+                        offset,
+                        size,
+                        f"record (opcode 0x{opcode:02x}) of {length} bytes is cut off after "
+                        f"{len(body)}",
+                    )
+                    return
+                if opcode in (_DATA_END, _FOOTER):
+                    return
+                if opcode == _SCHEMA:
+                    self._schema(body)
+                elif opcode == _CHANNEL:
+                    self._channel(body, file)
+                elif opcode == _CHUNK:
+                    data = self._chunk_body(
+                        file, offset, size, body, partial=False, unpacked=unpacked
+                    )
+                    if data is None:
+                        return
+                    pending = (offset, data)
+                elif opcode == _MESSAGE:
+                    loose.append((offset, head + body))
+                    if len(loose) >= LOOSE_GROUP:
+                        yield from self._loose(file, offset, loose)
+                        loose = []
+                offset += _HEAD.size + length
 
     def _chunk_body(
-        self, file: Path, offset: int, size: int, body: bytes, partial: bool
+        self,
+        file: Path,
+        offset: int,
+        size: int,
+        body: bytes,
+        partial: bool,
+        unpacked: bytes | Exception | None = None,
     ) -> bytes | None:
-        """The uncompressed records of a chunk record; None (reading stops) if unreadable."""
+        """The uncompressed records of a chunk record; None (reading stops) if unreadable.
+
+        ``unpacked`` is what :func:`_unpack_chunk` gave on the read-ahead thread, if it ran.
+        """
+        _, _, raw_size, _ = struct.unpack_from("<QQQI", body, 0) if len(body) >= 28 else (0,) * 4
         try:
-            _, _, raw_size, _ = struct.unpack_from("<QQQI", body, 0)
-            compression, at = _string(body, 28)
-            (compressed_size,) = struct.unpack_from("<Q", body, at)
-            data = body[at + 8 : at + 8 + compressed_size]
-            raw = _decompress(data, compression, raw_size, partial)
+            if unpacked is None:
+                unpacked = _unpack_chunk(body, partial)
+            if isinstance(unpacked, Exception):
+                raise unpacked
+            raw = unpacked
         except DataError:
             raise
         except Exception as exc:  # struct, zstandard and lz4 raise their own types
@@ -343,10 +456,10 @@ class McapScan:
         if length < MESSAGE_PREFIX - _HEAD.size or (len(data) - start) % record:
             return False
         rows = np.frombuffer(data, np.uint8, offset=start).reshape(-1, record)
-        lengths = np.ascontiguousarray(rows[:, 1:9]).view("<u8").ravel()
+        lengths = column(rows, 1, "<u8")
         if not (np.all(rows[:, 0] == _MESSAGE) and np.all(lengths == length)):
             return False
-        channels = np.ascontiguousarray(rows[:, 9:11]).view("<u2").ravel()
+        channels = column(rows, 9, "<u2")
         for channel_id, topic in self._channels.items():
             selected = rows[channels == channel_id]
             if selected.shape[0]:

@@ -1,12 +1,13 @@
 """Where ``tcomp process`` writes: a rosbag2 MCAP bag or a CSV file, both streamed.
 
-Bag topics: the input Temperature topics (copied record for record from a bag input, encoded
-from a CSV input), :data:`GAS_TOPIC` (one ``sensor_msgs/msg/Temperature`` per reconstructed pair,
+Bag topics: the input Temperature topics (from a bag input copied record for record, with the
+channel id and the offered QoS they were recorded with; encoded from a CSV input),
+:data:`GAS_TOPIC` (one ``sensor_msgs/msg/Temperature`` per reconstructed pair,
 stamped and logged at that pair's stamp), :data:`HISTORY_TOPIC` (one
 ``diagnostic_msgs/msg/DiagnosticArray`` per re-estimation, status ``tcomp: process``, logged at
 the newest stamp of the window) and :data:`DIAGNOSIS_TOPIC` (one DiagnosticArray with the
-diagnosis verdict, logged at the last stamp). Every topic is offered reliable, keep-last-10,
-volatile, as :func:`tcomp_core.io.write_bag` does.
+diagnosis verdict, logged at the last stamp). The derived topics, and inputs read from CSV,
+are offered reliable, keep-last-10, volatile, as :func:`tcomp_core.io.write_bag` does.
 
 CSV columns: ``time,tc1,tc2[,ref],gas,tau1,tau2``, one row per matched pair (``time`` in
 seconds, ``sec + nanosec / 1e9`` of the stamp); ``gas`` is empty where no gas sample was
@@ -76,29 +77,46 @@ class BagOutput:
 
         self.path = path
         self._writer = McapBagWriter(path, compress=compress)
-        qos = _offered_qos()
         self._input_topics = dict(input_topics)
         self._inputs: dict[str, int] = {}  # channels of the inputs, added as they appear
-        self._gas = self._writer.add_channel(GAS_TOPIC, TEMPERATURE_TYPE, qos)
-        self._history = self._writer.add_channel(HISTORY_TOPIC, DIAGNOSTIC_TYPE, qos)
-        self._diagnosis = (
-            self._writer.add_channel(DIAGNOSIS_TOPIC, DIAGNOSTIC_TYPE, qos)
-            if with_diagnosis
-            else 0
-        )
+        # The derived topics get their channels on first use, after the inputs, so that the
+        # inputs keep their channel ids and their records are copied unchanged.
+        self._derived = {
+            "gas": (GAS_TOPIC, TEMPERATURE_TYPE),
+            "history": (HISTORY_TOPIC, DIAGNOSTIC_TYPE),
+            **({"diagnosis": (DIAGNOSIS_TOPIC, DIAGNOSTIC_TYPE)} if with_diagnosis else {}),
+        }
+        self._derived_channels: dict[str, int] = {}
         self._typestore = get_typestore(Stores.ROS2_JAZZY)
         self._hardware_id = hardware_id
         self.counts = {"gas": 0, "history": 0, "diagnosis": 0}
 
+    def _channel(self, name: str) -> int:
+        if name not in self._derived_channels:
+            topic, msgtype = self._derived[name]
+            self._derived_channels[name] = self._writer.add_channel(topic, msgtype, _offered_qos())
+        return self._derived_channels[name]
+
     def inputs(
-        self, role: str, batch: TemperatureBatch, records: list[NDArray[np.uint8]] | None
+        self,
+        role: str,
+        batch: TemperatureBatch,
+        records: list[NDArray[np.uint8]] | None,
+        qos_text: str | None = None,
     ) -> None:
-        """Copy input messages: whole MCAP records when given, else encoded from ``batch``."""
+        """Copy input messages: whole MCAP records when given, else encoded from ``batch``.
+
+        ``qos_text`` is the input channel's ``offered_qos_profiles`` (kept as it is); without
+        it the topic is offered as :func:`tcomp_core.io.write_bag` does.
+        """
         if not len(batch) or role not in self._input_topics:
             return
         if role not in self._inputs:
             topic = self._input_topics[role]
-            self._inputs[role] = self._writer.add_channel(topic, TEMPERATURE_TYPE, _offered_qos())
+            source_id = int(records[0][0, 9:11].view("<u2")[0]) if records else None
+            self._inputs[role] = self._writer.add_channel(
+                topic, TEMPERATURE_TYPE, _offered_qos(), channel_id=source_id, qos_text=qos_text
+            )
         channel = self._inputs[role]
         if records is not None:
             for block in records:
@@ -123,7 +141,7 @@ class BagOutput:
         del tau, fed_to_ns  # the τ history topic carries τ
         if stamps_ns.size:
             self._writer.write_rows(
-                self._gas, stamps_ns, encode(stamps_ns, gas, variance, frame_id)
+                self._channel("gas"), stamps_ns, encode(stamps_ns, gas, variance, frame_id)
             )
             self.counts["gas"] += int(stamps_ns.size)
 
@@ -151,7 +169,7 @@ class BagOutput:
     def estimate(self, stamp_ns: int, level: int, message: str, values: Mapping[str, str]) -> None:
         """Write one entry of the τ history."""
         data = self._status_array(stamp_ns, level, message, values)
-        self._writer.write_message(self._history, int(stamp_ns), data)
+        self._writer.write_message(self._channel("history"), int(stamp_ns), data)
         self.counts["history"] += 1
 
     def diagnosis(
@@ -159,11 +177,13 @@ class BagOutput:
     ) -> None:
         """Write the diagnosis verdict."""
         data = self._status_array(stamp_ns, level, message, values)
-        self._writer.write_message(self._diagnosis, int(stamp_ns), data)
+        self._writer.write_message(self._channel("diagnosis"), int(stamp_ns), data)
         self.counts["diagnosis"] += 1
 
     def close(self) -> None:
-        """Finish the bag (summary, footer, ``metadata.yaml``)."""
+        """Finish the bag (summary, footer, ``metadata.yaml``); topics left empty included."""
+        for name in self._derived:
+            self._channel(name)
         self._writer.close()
 
     def abort(self) -> None:

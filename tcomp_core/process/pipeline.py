@@ -220,6 +220,10 @@ class _BagInput:
             total = max(self.scan.bytes_total, 1)
             yield _Block(series, records, min(self.scan.bytes_read / total, 1.0))
 
+    def qos_text(self, role: str) -> str | None:
+        """The input channel's ``offered_qos_profiles``, as recorded (None if it has none)."""
+        return self.scan.metadata.get(self.topics[role], {}).get("offered_qos_profiles")
+
     def check_topics(self) -> None:
         listed = ", ".join(
             f"{topic} ({', '.join(sorted(kinds))})"
@@ -257,6 +261,10 @@ class _CsvInput:
                 if values is not None
             }
             yield _Block(series, {}, min((start + CSV_BLOCK) / stamps.size, 1.0))
+
+    def qos_text(self, role: str) -> str | None:
+        """A CSV file has no QoS: the default is offered."""
+        return None
 
     def check_topics(self) -> None:
         """CSV columns were checked on reading."""
@@ -493,7 +501,7 @@ def _run(
     for block in reader:
         for role, batch in block.series.items():
             pairer.add(role, batch.stamps_ns, batch.temperature)
-            sink.inputs(role, batch, block.records.get(role))
+            sink.inputs(role, batch, block.records.get(role), reader.qos_text(role))
             if len(batch):
                 count, newest = last_good.get(role, (0, np.iinfo(np.int64).min))
                 last_good[role] = (count + len(batch), max(newest, int(batch.stamps_ns.max())))

@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DataError
 from ..io import TEMPERATURE_TYPE
+from .rows import column
 
 __all__ = [
     "CDR_LE_HEADER",
@@ -102,12 +103,6 @@ class TemperatureBatch:
 _EMPTY = TemperatureBatch(np.empty(0, np.int64), np.empty(0), np.empty(0))
 
 
-def _column(rows: NDArray[np.uint8], start: int, dtype: str) -> NDArray:
-    """Bytes ``start:start+itemsize`` of every row as a contiguous 1-D array of ``dtype``."""
-    width = np.dtype(dtype).itemsize
-    return np.ascontiguousarray(rows[:, start : start + width]).view(dtype).ravel()
-
-
 @cache
 def _typestore() -> Any:  # rosbags imported lazily
     from rosbags.typesys import Stores, get_typestore
@@ -160,7 +155,7 @@ def decode_rows(rows: NDArray[np.uint8]) -> TemperatureBatch:
     if size < 16:
         return _decode_slow([rows[i].tobytes() for i in range(count)])
     header_ok = np.all(rows[:, :4] == np.frombuffer(CDR_LE_HEADER, np.uint8), axis=1)
-    lengths = _column(rows, 12, "<u4")
+    lengths = column(rows, 12, "<u4")
     frame_length = int(lengths[0]) if header_ok[0] else int(np.median(lengths))
     good = header_ok & (lengths == frame_length)
     if frame_length == 0 or payload_size(frame_length) != size:
@@ -170,9 +165,9 @@ def decode_rows(rows: NDArray[np.uint8]) -> TemperatureBatch:
     offset = values_offset(frame_length)
     first = int(np.argmax(good))
     frame_id = rows[first, 16 : 16 + frame_length - 1].tobytes().decode(errors="replace")
-    stamps = _column(rows, 4, "<i4").astype(np.int64) * _NS_PER_S + _column(rows, 8, "<u4")
-    temperature = _column(rows, offset, "<f8").astype(np.float64)
-    variance = _column(rows, offset + 8, "<f8").astype(np.float64)
+    stamps = column(rows, 4, "<i4").astype(np.int64) * _NS_PER_S + column(rows, 8, "<u4")
+    temperature = column(rows, offset, "<f8").astype(np.float64)
+    variance = column(rows, offset + 8, "<f8").astype(np.float64)
     bad = np.flatnonzero(~good)
     for index in bad.tolist():
         stamps[index], temperature[index], variance[index], _ = _deserialize(rows[index].tobytes())
@@ -228,6 +223,30 @@ def decode_payloads(payloads: Sequence[bytes]) -> TemperatureBatch:
     return TemperatureBatch(stamps, values, variances, frame_id, fallback)
 
 
+_ENCAPSULATION = int.from_bytes(CDR_LE_HEADER, "little")
+
+
+def _message_dtype(frame_length: int) -> np.dtype:
+    """One serialized Temperature whose frame id (with its NUL) has ``frame_length`` bytes."""
+    offset = values_offset(frame_length)
+    return np.dtype(
+        {
+            "names": [
+                "encapsulation",
+                "sec",
+                "nanosec",
+                "frame_length",
+                "frame_id",
+                "temperature",
+                "variance",
+            ],
+            "formats": ["<u4", "<i4", "<u4", "<u4", f"S{frame_length}", "<f8", "<f8"],
+            "offsets": [0, 4, 8, 12, 16, offset, offset + 8],
+            "itemsize": offset + 16,
+        }
+    )
+
+
 def encode(
     stamps_ns: ArrayLike,
     temperature: ArrayLike,
@@ -267,14 +286,13 @@ def encode(
             "builtin_interfaces/msg/Time range [0, 2**31) s"
         )
     frame = frame_id.encode() + b"\x00"
-    offset = values_offset(len(frame))
-    rows = np.zeros((count, offset + 16), np.uint8)
-    prefix = CDR_LE_HEADER + b"\x00" * 8 + len(frame).to_bytes(4, "little") + frame
-    rows[:, : len(prefix)] = np.frombuffer(prefix, np.uint8)
-    rows[:, 4:8] = sec.astype("<i4").view(np.uint8).reshape(count, 4)
-    rows[:, 8:12] = nanosec.astype("<u4").view(np.uint8).reshape(count, 4)
-    values = np.broadcast_to(np.asarray(temperature, "<f8"), (count,))
-    variances = np.broadcast_to(np.asarray(variance, "<f8"), (count,))
-    rows[:, offset : offset + 8] = np.ascontiguousarray(values).view(np.uint8).reshape(count, 8)
-    rows[:, offset + 8 :] = np.ascontiguousarray(variances).view(np.uint8).reshape(count, 8)
+    rows = np.zeros(count, _message_dtype(len(frame)))
+    rows["encapsulation"] = _ENCAPSULATION
+    rows["sec"] = sec
+    rows["nanosec"] = nanosec
+    rows["frame_length"] = len(frame)
+    rows["frame_id"] = frame
+    rows["temperature"] = temperature
+    rows["variance"] = variance
+    rows = rows.view(np.uint8).reshape(count, rows.dtype.itemsize)
     return rows
