@@ -188,3 +188,26 @@ def test_cli_fit_refuses_an_unknown_effect(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["fit", str(data), "--effects", "radiation,smoke"])
     assert "unknown effect 'smoke'" in capsys.readouterr().err
+
+
+def test_an_effect_is_judged_on_the_blocks_both_models_score():
+    # The base model fits this record badly (a 6 degC offset) with a long τ2, so its start-up
+    # transient covers the first validation block, which the calibration refit does score.
+    # The blocks must still be compared one for one (a count mismatch used to reject it).
+    sim = simulate_effect(
+        "calibration",
+        "multisine",
+        tau1=0.0375,
+        tau2=0.1627,
+        dt=0.001,
+        duration=10.0,
+        noise_percent=2.0,
+        seed=126040968,
+        params={"gain": 1.047, "offset_c": 5.93},
+    )
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="cal", dt=sim.dt)
+    found = diagnose(record, max_effects=1)
+    base_blocks = found.base.block_errors_pct
+    assert np.isnan(base_blocks[0]) and base_blocks.size == found.final.block_errors_pct.size
+    assert found.verdict == "calibration"
+    assert found.base.error_pct >= 2.0 * found.final.error_pct

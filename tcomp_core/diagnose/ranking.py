@@ -79,7 +79,10 @@ def is_significant(
     before, after = current.block_errors_pct, candidate.block_errors_pct
     if before.size == 0 or before.size != after.size:
         return False
-    return float(np.mean(after < before)) >= MIN_BLOCK_SHARE
+    both = np.isfinite(before) & np.isfinite(after)  # blocks that both models scored
+    if not both.any():
+        return False
+    return float(np.mean(after[both] < before[both])) >= MIN_BLOCK_SHARE
 
 
 def rank(suspects: Sequence[Suspect]) -> list[Suspect]:

@@ -39,7 +39,8 @@ class ModelFit:
     train_error_pct : float
         ``error_pct`` measured on the estimation blocks, %.
     block_errors_pct : ndarray, shape (B,)
-        Raw held-out error of each validation block, %.
+        Raw held-out error of each validation block, %; NaN where the model's start-up
+        transient leaves the block too few samples.
     predicted : ndarray, shape (N,)
         Free-run simulation of the slow sensor from the fast one, degrees C (working rate).
     gas1, gas2 : ndarray, shape (N,)
