@@ -36,6 +36,10 @@ __all__ = ["Evaluator", "heldout_error_percent"]
 
 #: Order of the comparison low-pass (applied forward and backward).
 EVAL_FILTER_ORDER = 4
+#: Order of the low-pass before the fits (applied forward and backward), and the half length
+#: of its impulse response kept for the noise normalisation, samples.
+FIT_FILTER_ORDER = 4
+FIT_KERNEL_HALF = 200
 #: Time constants of the slow sensor skipped at the start (initial-condition transient).
 TRANSIENT_TAUS = 3.0
 #: A validation block is scored only with more samples than this left after the transient.
@@ -84,12 +88,15 @@ class Evaluator:
         The slower sensor (1 or 2), simulated from the other.
     cutoff_hz : float
         Cut-off of the comparison low-pass, Hz.
+    fit_cutoff_hz : float or None
+        Cut-off of the low-pass the readings go through before a fit, Hz (None: none).
     """
 
     data: PreparedData
     context: FitContext
     slow: int
     cutoff_hz: float
+    fit_cutoff_hz: float | None = None
     _sos: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -129,7 +136,30 @@ class Evaluator:
 
     def fit(self, model: Model) -> Model:
         """Fit ``model`` on the estimation blocks."""
-        return model.fit(self.data.tc1, self.data.tc2, self.context, self.data.training_rows)
+        return model.fit(*self._fit_inputs(), self.data.training_rows)
+
+    def _fit_inputs(self):
+        """The readings the fits see, and their context: low-passed above both signal bands.
+
+        Above the faster sensor's band edge the readings hold only noise, which the inverse
+        models amplify as the frequency squared; the low-pass (zero phase, so the two chains'
+        relation is kept) removes it, and the context's kernel tells the residual
+        normalisation how much is left.
+        """
+        if self.fit_cutoff_hz is None:
+            return self.data.tc1, self.data.tc2, self.context
+        sos = signal.butter(
+            FIT_FILTER_ORDER, self.fit_cutoff_hz, output="sos", fs=1.0 / self.data.dt
+        )
+        impulse = np.zeros(2 * FIT_KERNEL_HALF + 1)
+        impulse[FIT_KERNEL_HALF] = 1.0
+        kernel = signal.sosfiltfilt(sos, impulse)
+        context = replace(self.context, noise_kernel=kernel)
+        return (
+            signal.sosfiltfilt(sos, self.data.tc1),
+            signal.sosfiltfilt(sos, self.data.tc2),
+            context,
+        )
 
     def refit_whole(self, fit: ModelFit) -> ModelFit:
         """``fit`` with its parameters refitted on the whole record, its held-out scores kept.
@@ -138,7 +168,7 @@ class Evaluator:
         all the data (half the variance). The simulation and reconstructions follow the new
         parameters; the errors remain those of the held-out test.
         """
-        model = Model(fit.effects, fit.params).fit(self.data.tc1, self.data.tc2, self.context)
+        model = Model(fit.effects, fit.params).fit(*self._fit_inputs())
         readings = self.readings
         fast = 3 - self.slow
         measured = readings[self.slow - 1]

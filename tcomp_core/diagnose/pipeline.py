@@ -25,7 +25,7 @@ from ..estimators.scatter import beta_scatter
 from ..io import Record
 from .heldout import Evaluator, heldout_error_percent
 from .prepare import PreparedData, block_length_s, prepare
-from .ranking import MAX_EFFECTS, next_round, pick
+from .ranking import MAX_EFFECTS, fit_with_effect, next_round, pick
 from .residuals import FailureAnalysis, analyse_failure
 from .result import Diagnosis, ModelFit, Suspect
 
@@ -33,6 +33,8 @@ __all__ = ["diagnose", "fit_effects"]
 
 #: The comparison low-pass sits this far above the slow sensor's band edge.
 CUTOFF_PER_BAND_EDGE = 1.5
+#: The fits' low-pass sits this far above the faster sensor's band edge.
+FIT_CUTOFF_PER_BAND_EDGE = 1.5
 
 
 def _initial_taus(data: PreparedData) -> dict[str, float]:
@@ -73,7 +75,14 @@ def _evaluator(data: PreparedData, taus: dict[str, float]) -> Evaluator:
     duration = data.time[-1] + data.dt
     cutoff = CUTOFF_PER_BAND_EDGE * data.band_edge_hz[slow - 1]
     cutoff = float(min(max(cutoff, 10.0 / duration), 0.8 * nyquist))
-    return Evaluator(data=data, context=context, slow=slow, cutoff_hz=cutoff)
+    fit_cutoff = FIT_CUTOFF_PER_BAND_EDGE * max(data.band_edge_hz)
+    return Evaluator(
+        data=data,
+        context=context,
+        slow=slow,
+        cutoff_hz=cutoff,
+        fit_cutoff_hz=float(fit_cutoff) if fit_cutoff < 0.8 * nyquist else None,
+    )
 
 
 def _fit_base(evaluator: Evaluator, taus: dict[str, float]) -> tuple[Model, ModelFit]:
@@ -253,10 +262,9 @@ def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
     steps, suspects = [base], []
     for name in effects:
         try:
-            model = evaluator.fit(model.with_effect(name))
+            model, fit = fit_with_effect(evaluator, model, name)
         except (EstimationError, ValueError) as exc:
             raise EstimationError(f"fitting the effect {name!r} failed: {exc}") from exc
-        fit = evaluator.evaluate(model)
         previous = steps[-1].error_pct
         evidence = 1.0 - fit.error_pct / previous if math.isfinite(previous) else 0.0
         suspects.append(

@@ -33,7 +33,7 @@ from .residuals import level_errors
 from .result import ModelFit, Suspect
 from .signatures import signature
 
-__all__ = ["MAX_EFFECTS", "is_significant", "next_round", "pick", "rank"]
+__all__ = ["MAX_EFFECTS", "fit_with_effect", "is_significant", "next_round", "pick", "rank"]
 
 #: Least relative fall of the held-out error that counts.
 MIN_RELATIVE_FALL = 0.2
@@ -105,6 +105,24 @@ def rank(suspects: Sequence[Suspect]) -> list[Suspect]:
     return ordered
 
 
+def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Model, ModelFit]:
+    """Fit ``model`` plus the effect ``name`` and score it; the best of its setting choices.
+
+    An effect with :attr:`~tcomp_core.effects.base.Effect.setting_choices` is fitted once per
+    choice and the fit with the lowest held-out error is kept.
+    """
+    extended = model.with_effect(name)
+    choices = extended.instances[-1].setting_choices or ({},)
+    best: tuple[Model, ModelFit] | None = None
+    for choice in choices:
+        fitted = evaluator.fit(Model(extended.effects, {**extended.params, **choice}))
+        fit = evaluator.evaluate(fitted)
+        if best is None or fit.error_pct < best[1].error_pct:
+            best = (fitted, fit)
+    assert best is not None
+    return best
+
+
 def next_round(
     evaluator: Evaluator, model: Model, current: ModelFit, candidates: Sequence[str]
 ) -> list[Suspect]:
@@ -112,8 +130,7 @@ def next_round(
     suspects = []
     for name in candidates:
         try:
-            fitted = evaluator.fit(model.with_effect(name))
-            fit = evaluator.evaluate(fitted)
+            _, fit = fit_with_effect(evaluator, model, name)
         except (TcompError, ValueError, np.linalg.LinAlgError) as exc:
             suspects.append(
                 Suspect(

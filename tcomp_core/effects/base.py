@@ -74,6 +74,9 @@ class FitContext:
     sigma2 : float
         Noise standard deviation of thermocouple 2, degrees C: the unit of the fit's residuals,
         so that penalties weigh against residuals of order one.
+    noise_kernel : ndarray or None
+        Impulse response of the low-pass the readings were given through before the fit
+        (None: raw readings); the fit's residual normalisation counts the noise it removes.
     """
 
     dt: float
@@ -84,6 +87,7 @@ class FitContext:
     phi_hat: float
     tau_scale_s: float
     sigma2: float = 1.0
+    noise_kernel: NDArray[np.float64] | None = None
 
     @property
     def duration_s(self) -> float:
@@ -98,6 +102,10 @@ class Effect:
     name: ClassVar[str] = ""
     #: One line: what is physically missing from the base model.
     summary: ClassVar[str] = ""
+    #: Settings of the fit (neither searched nor measured) to choose between on held-out data:
+    #: one dict of values per choice, carried in the parameters (see
+    #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`); the first is the default.
+    setting_choices: ClassVar[tuple[dict[str, float], ...]] = ()
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         """The effect's fitted parameters and their bounds for this record."""

@@ -161,7 +161,10 @@ def _fill_edges(values: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def gas_from_reading(
-    chain: SensorChain, reading: NDArray[np.float64], dt: float
+    chain: SensorChain,
+    reading: NDArray[np.float64],
+    dt: float,
+    noise_kernel: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gas temperature on the common time base from one sensor's readings.
 
@@ -172,6 +175,8 @@ def gas_from_reading(
         The sensor's readings, degrees C.
     dt : float
         Sample interval, s.
+    noise_kernel : ndarray, optional
+        Impulse response of a low-pass the readings went through (their white noise with it).
 
     Returns
     -------
@@ -203,8 +208,10 @@ def gas_from_reading(
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
     # The noise of u[k] is (scale/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation
-    # term's slope; an interpolator with weights w turns the taps into w ⊛ (-c, 1), whose
-    # energy is (1 + c²) Σw² - 2c Σ w_j w_(j+1).
+    # term's slope; an interpolator with weights w (and a low-pass before it) turns the taps
+    # into w ⊛ (-c, 1), whose energy is (1 + c²) Σw² - 2c Σ w_j w_(j+1).
+    if noise_kernel is not None:
+        weights = np.convolve(weights, noise_kernel)
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
     noise_gain = (scale / chain.gain) ** 2 * energy / (1.0 - a) ** 2
     return gas, noise_gain

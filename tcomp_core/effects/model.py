@@ -206,8 +206,8 @@ class Model:
         """Normalised cross-relation residual (u1 − u2)/(σ2 sqrt(φ g1 + g2)), shape (N - 1,)."""
         params = self.params if params is None else params
         first, second = self.chains(context, params)
-        gas1, gain1 = gas_from_reading(first, tc1, context.dt)
-        gas2, gain2 = gas_from_reading(second, tc2, context.dt)
+        gas1, gain1 = gas_from_reading(first, tc1, context.dt, context.noise_kernel)
+        gas2, gain2 = gas_from_reading(second, tc2, context.dt, context.noise_kernel)
         phi = Model(self.effects, params).phi
         return (gas1 - gas2) / (context.sigma2 * np.sqrt(phi * gain1 + gain2))
 
@@ -277,6 +277,14 @@ class Model:
                 f"{n_rows} usable samples are too few for {len(specs)} parameters"
             )
         fixed = {k: v for effect in self.instances for k, v in effect.fixed(context).items()}
+        settings = {
+            name: self.params[name]
+            for effect in self.instances
+            for choice in effect.setting_choices[:1]
+            for name in choice
+            if name in self.params
+        }
+        fixed = {**settings, **fixed}
 
         def unpack(x: NDArray[np.float64]) -> dict[str, float]:
             values = dict(fixed)

@@ -20,9 +20,11 @@ from .base import Effect, FitContext, ParamSpec
 __all__ = ["Velocity"]
 
 _DEGREE = 3
-#: Weight of the smoothness penalty per unit second difference of log s, relative to the
-#: square root of the number of fitted rows.
-_SMOOTHNESS = 0.05
+#: Weights of the smoothness penalty per unit second difference of log s, relative to the
+#: square root of the number of fitted rows, chosen between on held-out data: the stiffer one
+#: interpolates the held-out blocks better when s(t) changes slowly, the softer one lets a
+#: fast, strong change (a period of a few knot spacings) through.
+SMOOTHNESS_CHOICES = (0.05, 0.01)
 
 
 def _basis(context: FitContext) -> NDArray[np.float64]:
@@ -38,6 +40,7 @@ class Velocity(Effect):
 
     name = "velocity"
     summary = "a changing flow velocity scales both time constants together (spline of log s(t))"
+    setting_choices = tuple({"velocity_smoothness": value} for value in SMOOTHNESS_CHOICES)
 
     def __init__(self) -> None:
         self._cache: tuple[int, float, NDArray[np.float64]] | None = None
@@ -71,11 +74,49 @@ class Velocity(Effect):
         tc1: NDArray[np.float64],
         tc2: NDArray[np.float64],
     ) -> list[dict[str, float]]:
-        return [{spec.name: 0.0 for spec in self.specs(context)}]
+        starts = [{spec.name: 0.0 for spec in self.specs(context)}]
+        tracked = self._tracked_start(context, tc1, tc2)
+        return starts if tracked is None else [*starts, tracked]
+
+    def _tracked_start(
+        self, context: FitContext, tc1: NDArray[np.float64], tc2: NDArray[np.float64]
+    ) -> dict[str, float] | None:
+        """A start from τ tracked through the record (forgetting β-GTLS, ratio held).
+
+        A strong, fast velocity change leaves the constant-τ start far from the optimum; the
+        tracked common scale, projected on the spline, starts the search near it.
+        """
+        from ..errors import TcompError
+        from ..tracking import track_tau
+
+        try:
+            track = track_tau(
+                tc1,
+                tc2,
+                context.dt,
+                memory_s=context.knot_spacing_s / 2.0,
+                step_s=context.knot_spacing_s / 4.0,
+                phi=context.phi_hat,
+            )
+        except (TcompError, ValueError, np.linalg.LinAlgError):
+            return None
+        scale = np.log(np.sqrt(track.tau1 * track.tau2))
+        finite = np.isfinite(scale)
+        design = self._design(context)
+        if finite.sum() < design.shape[1]:
+            return None
+        log_s = np.interp(context.time, track.time[finite], scale[finite])
+        coefficients, *_ = np.linalg.lstsq(design, log_s - log_s.mean(), rcond=None)
+        # The basis sums to one: shifting every coefficient by c0 leaves the normalised s(t).
+        relative = np.clip(coefficients[1:] - coefficients[0], -1.5, 1.5)
+        start = {f"velocity_{j}": float(c) for j, c in enumerate(relative, start=1)}
+        start["tau1"] = float(np.exp(np.nanmean(np.log(track.tau1))))
+        start["tau2"] = float(np.exp(np.nanmean(np.log(track.tau2))))
+        return start
 
     def _coefficients(self, params: Mapping[str, float]) -> NDArray[np.float64]:
         names = sorted(
-            (key for key in params if key.startswith("velocity_")),
+            (key for key in params if key.startswith("velocity_") and key[9:].isdigit()),
             key=lambda key: int(key.split("_")[1]),
         )
         return np.array([0.0, *(params[name] for name in names)])
@@ -88,4 +129,5 @@ class Velocity(Effect):
         coefficients = self._coefficients(params)
         if coefficients.size < 3:
             return np.empty(0)
-        return _SMOOTHNESS * np.sqrt(n_rows) * np.diff(coefficients, 2)
+        weight = params.get("velocity_smoothness", SMOOTHNESS_CHOICES[0])
+        return weight * np.sqrt(n_rows) * np.diff(coefficients, 2)
