@@ -15,10 +15,17 @@ beside the baseline measured in the same run: the paper's base model alone on th
 (β-GTLS on the estimation blocks plus its held-out score), so the ratio says what the effect
 search costs on top of the paper's method.
 
+``--random N`` replaces the grid by N records drawn at random (seeded by ``--seed``), no
+reference given to the diagnosis: effects cycle through none and the six, and each record
+draws its gas signal (sinusoid included), sample interval (2, 1 or 0.5 ms), length (10 or
+20 s), K (0.5, 1 or 2 %), τ1 in 10–40 ms, τ2/τ1 in 3–6 and the effect's strength
+(:func:`random_params`). It shows how far the verdicts hold beyond the grid's defaults.
+
 Run::
 
     .venv/bin/python bench/bench_diagnose.py            # full grid (several minutes)
     .venv/bin/python bench/bench_diagnose.py --quick    # a smaller grid
+    .venv/bin/python bench/bench_diagnose.py --random 42 --seed 23
 """
 
 from __future__ import annotations
@@ -33,7 +40,11 @@ from tcomp_core.diagnose import diagnose, pipeline
 from tcomp_core.diagnose.prepare import prepare
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.io import Record
-from tcomp_core.simulate_effects import simulate_effect
+from tcomp_core.simulate_effects import (
+    KELVIN,
+    RADIATION_MEAN_C,
+    simulate_effect,
+)
 
 TRUTHS = (None, *EFFECT_NAMES)
 TAU_PAIRS = ((0.0238, 0.1168), (0.015, 0.06))
@@ -48,12 +59,73 @@ def record_of(effect, kind, noise, taus, seed) -> tuple[Record, object]:
     return record, sim
 
 
-def run_grid(signals, noises, seeds) -> list[dict]:
-    rows = []
+def random_params(effect, rng, tau1, tau2) -> dict[str, float]:
+    """Effect strengths drawn around the defaults of :func:`default_effect_params`."""
+
+    def draw(low: float, high: float) -> float:
+        return float(rng.uniform(low, high))
+
+    if effect == "conduction":
+        kappa1 = draw(0.03, 0.1)
+        return {"kappa1": kappa1, "kappa2": kappa1 * draw(3.0, 6.0), "tau_p": draw(0.5, 2.5)}
+    if effect == "radiation":
+        r1 = draw(0.05, 0.15) / (4.0 * (RADIATION_MEAN_C + KELVIN) ** 3)
+        return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": draw(150, 450)}
+    if effect == "velocity":
+        return {"m": draw(0.5, 0.8), "depth": draw(0.25, 0.5), "period_s": draw(3.0, 10.0)}
+    if effect == "delay":
+        return {"delay_s": draw(0.005, 0.015)}
+    if effect == "calibration":
+        return {
+            "gain": 1.0 + float(rng.choice([-1, 1])) * draw(0.02, 0.05),
+            "offset_c": draw(-8, 8),
+        }
+    if effect == "noise_ratio":
+        return {"sigma_ratio": draw(2.0, 4.0) if rng.random() < 0.5 else draw(0.25, 0.5)}
+    return {}
+
+
+def random_records(count: int, seed: int):
+    """``count`` (record, simulation) pairs drawn as the module docstring says."""
+    rng = np.random.default_rng(seed)
+    for i in range(count):
+        effect = TRUTHS[i % len(TRUTHS)]
+        kind = str(rng.choice(["multisine", "ramp", "exhaust", "sinusoid"]))
+        dt = float(rng.choice([0.002, 0.001, 0.0005]))
+        duration = float(rng.choice([10.0, 20.0]))
+        noise = float(rng.choice([0.5, 1.0, 2.0]))
+        tau1 = float(rng.uniform(0.01, 0.04))
+        tau2 = tau1 * float(rng.uniform(3.0, 6.0))
+        params = random_params(effect, rng, tau1, tau2)
+        sim = simulate_effect(
+            effect,
+            kind,
+            tau1=tau1,
+            tau2=tau2,
+            dt=dt,
+            duration=duration,
+            noise_percent=noise,
+            seed=int(rng.integers(1 << 30)),
+            params=params,
+        )
+        name = f"{i}:{effect or 'none'}/{kind}/dt{dt * 1e3:g}ms/{duration:g}s/K{noise}"
+        yield (
+            Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source=name, dt=sim.dt),
+            sim,
+        )
+
+
+def grid_records(signals, noises, seeds):
     for effect, kind, noise, taus, seed in itertools.product(
         TRUTHS, signals, noises, TAU_PAIRS, seeds
     ):
-        record, sim = record_of(effect, kind, noise, taus, seed)
+        yield record_of(effect, kind, noise, taus, seed)
+
+
+def run_records(records) -> list[dict]:
+    rows = []
+    for record, sim in records:
+        effect = sim.effect
         started = time.perf_counter()
         found = diagnose(record, max_effects=1)
         rows.append(
@@ -125,13 +197,18 @@ def time_40k() -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true", help="one signal, one noise, one seed")
+    parser.add_argument("--random", type=int, default=0, help="N random records, no reference")
+    parser.add_argument("--seed", type=int, default=23, help="seed of --random")
     args = parser.parse_args()
-    if args.quick:
-        rows = run_grid(("multisine",), (1.0,), (1,))
+    if args.random:
+        rows = run_records(random_records(args.random, args.seed))
+    elif args.quick:
+        rows = run_records(grid_records(("multisine",), (1.0,), (1,)))
     else:
-        rows = run_grid(("multisine", "ramp", "exhaust"), (1.0, 2.0), (1,))
+        rows = run_records(grid_records(("multisine", "ramp", "exhaust"), (1.0, 2.0), (1,)))
     print_confusion(rows)
-    time_40k()
+    if not args.random:
+        time_40k()
 
 
 if __name__ == "__main__":
