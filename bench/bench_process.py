@@ -10,7 +10,9 @@ first-order lags), written with the bulk encoder. Then, in the same run:
   over the first ``--loop-messages`` messages (200 k by default, it is slow), messages per
   second converted to pairs per second (two messages per pair).
 
-Usage: ``python bench/bench_process.py [--minutes 10] [--compress]``.
+Both output modes run, uncompressed (rosbag2's default) then zstd chunks (``--compress``).
+
+Usage: ``python bench/bench_process.py [--minutes 10]``.
 """
 
 from __future__ import annotations
@@ -81,7 +83,6 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--loop-messages", type=int, default=200_000)
-    parser.add_argument("--compress", action="store_true", help="zstd output chunks")
     parser.add_argument("--cache", type=Path, default=Path("out/bench_process"))
     args = parser.parse_args(argv)
     bag = args.cache / f"sine_5khz_{args.minutes:g}min"
@@ -92,26 +93,31 @@ def main(argv: list[str] | None = None) -> int:
         make_bag(bag, args.minutes)
         print(f"generated {bag} in {time.perf_counter() - started:.1f} s")
     size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
-    with tempfile.TemporaryDirectory() as tmp:
-        output = Path(tmp) / "processed"
-        config = ProcessConfig(diagnose=False, compress=args.compress)
-        result = process(bag, output, config)
-        out_mb = sum(f.stat().st_size for f in output.iterdir()) / 1e6
+    runs = []
+    for compress in (False, True):
+        with tempfile.TemporaryDirectory() as tmp:
+            output = Path(tmp) / "processed"
+            result = process(bag, output, ProcessConfig(diagnose=False, compress=compress))
+            out_mb = sum(f.stat().st_size for f in output.iterdir()) / 1e6
+        runs.append((compress, result, out_mb))
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     loop_rate, looped = plain_loop_rate(bag, args.loop_messages)
-    rate = result.pairs_per_s
-    print(f"bag: {bag} ({size_mb:.0f} MB), {result.pairs} pairs, {2 * result.pairs} messages")
-    print(f"{'what':<44} {'pairs/s':>12} {'seconds':>9}")
-    print(f"{'tcomp process end to end':<44} {rate:>12.4g} {result.seconds:>9.2f}")
+    pairs = runs[0][1].pairs
+    print(f"bag: {bag} ({size_mb:.0f} MB), {pairs} pairs, {2 * pairs} messages")
+    print(f"{'what':<44} {'pairs/s':>12} {'seconds':>9} {'output MB':>10} {'vs loop':>8}")
+    for compress, result, out_mb in runs:
+        what = f"tcomp process, {'zstd' if compress else 'uncompressed'} output"
+        rate = result.pairs_per_s
+        print(
+            f"{what:<44} {rate:>12.4g} {result.seconds:>9.2f} {out_mb:>10.0f} "
+            f"{rate / (loop_rate / 2):>7.1f}x"
+        )
     print(
         f"{f'plain rosbags loop (first {looped} messages)':<44} {loop_rate / 2:>12.4g} "
         f"{looped / loop_rate:>9.2f}"
     )
-    print(f"speed-up over the plain loop: {rate / (loop_rate / 2):.1f}x")
-    print(
-        f"output {out_mb:.0f} MB ({'zstd' if args.compress else 'uncompressed'}); "
-        f"{result.estimates} estimates, tau = {result.tau}; peak RSS {peak_mb:.0f} MB"
-    )
+    result = runs[0][1]
+    print(f"{result.estimates} estimates, tau = {result.tau}; peak RSS {peak_mb:.0f} MB")
     return 0
 
 

@@ -600,10 +600,12 @@ class OnlineCompensator:
         config = self._config
         samples = window.samples
         try:
+            from_window = False
             if self._tracker is not None and self._tracker.rows + 1 >= MIN_SAMPLES:
                 result = self._tracker.estimate()
             elif config.method in BETA_METHODS and config.prefilter_hz == 0.0:
                 result = window.estimate()
+                from_window = True
             else:
                 result = self._estimate_segments(window, samples)
         except (TcompError, ValueError) as exc:
@@ -613,7 +615,10 @@ class OnlineCompensator:
         fit = fit_error_percent(
             samples[:, 0], samples[:, 1], result.a1, result.a2, window.segment_starts
         )
-        floor = self._noise_floor_percent(window, samples)
+        # β-GTLS on the window's own scatter has already found the eigenvalue the floor needs.
+        same_problem = from_window and config.method == "beta-gtls"
+        eigenvalue = result.params.get("noise_eigenvalue") if same_problem else None
+        floor = self._noise_floor_percent(window, samples, eigenvalue)
         model = math.sqrt(max(fit**2 - floor**2, 0.0))
         reason = ""
         if not result.condition <= config.max_condition:
@@ -672,18 +677,26 @@ class OnlineCompensator:
         )
 
     def _noise_floor_percent(
-        self, window: SlidingBetaWindow, samples: NDArray[np.float64]
+        self,
+        window: SlidingBetaWindow,
+        samples: NDArray[np.float64],
+        eigenvalue: float | None = None,
     ) -> float:
         """Fit error that tc2's measurement noise alone would cause, percent of std(tc2).
 
         The smallest generalized eigenvalue of the β scatter with C0(φ) estimates σ2² times the
-        number of rows (the row noise covariance is σ2² C0(φ), Eq. 19).
+        number of rows (the row noise covariance is σ2² C0(φ), Eq. 19); ``eigenvalue`` is that
+        eigenvalue when the estimate already solved this problem.
         """
-        try:
-            _, eigenvalues = solve_gtls(window.scatter, beta_noise_covariance(self._config.phi))
-        except (ValueError, np.linalg.LinAlgError):
-            return math.nan
-        sigma2 = math.sqrt(max(float(eigenvalues[0]), 0.0) / max(window.rows, 1))
+        if eigenvalue is None:
+            try:
+                _, eigenvalues = solve_gtls(
+                    window.scatter, beta_noise_covariance(self._config.phi)
+                )
+            except (ValueError, np.linalg.LinAlgError):
+                return math.nan
+            eigenvalue = float(eigenvalues[0])
+        sigma2 = math.sqrt(max(eigenvalue, 0.0) / max(window.rows, 1))
         spread = float(np.std(samples[:, 1]))
         return 100.0 * sigma2 / spread if spread > 0.0 else math.nan
 
