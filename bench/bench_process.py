@@ -10,7 +10,8 @@ first-order lags), written with the bulk encoder. Then, in the same run:
   over the first ``--loop-messages`` messages (200 k by default, it is slow), messages per
   second converted to pairs per second (two messages per pair).
 
-Both output modes run, uncompressed (rosbag2's default) then zstd chunks (``--compress``).
+Both output modes run: uncompressed (``--no-compress``, rosbag2's default) then zstd chunks
+(``tcomp process``'s default).
 
 Usage: ``python bench/bench_process.py [--minutes 10]``.
 """

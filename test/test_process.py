@@ -518,12 +518,19 @@ def test_a_failing_write_ends_the_run_with_its_error_and_no_thread_left(tmp_path
     assert {thread.name for thread in threading.enumerate()} == threads
 
 
-@pytest.mark.parametrize("compress", [False, True])
-def test_the_bag_reads_back_the_same_compressed_or_not(tmp_path, compress):
-    config = ProcessConfig(diagnose=False, compress=compress)
-    result = process(BAGS / "rig_sine_5khz", tmp_path / "out", config)
-    gas = read_bag(tmp_path / "out", topics=("/gas_temperature", "/gas_temperature", None))
+@pytest.mark.parametrize("flag", [[], ["--no-compress"]])
+def test_the_bag_reads_back_the_same_compressed_or_not(tmp_path, flag, capsys):
+    compress = not flag  # zstd unless --no-compress
+    parser = argparse.ArgumentParser(prog="tcomp")
+    add_process_command(parser.add_subparsers(dest="verb"))
+    argv = ["process", str(BAGS / "rig_sine_5khz"), "-o", str(tmp_path / "out"), *flag]
+    args = parser.parse_args([*argv, "--no-diagnose"])
+    assert args.handler(args) == 0
+    result = process(BAGS / "rig_sine_5khz", tmp_path / "again", ProcessConfig(diagnose=False))
+    gas_topics = ("/gas_temperature", "/gas_temperature", None)
+    gas = read_bag(tmp_path / "out", topics=gas_topics)
     assert gas.tc1.size == result.gas > 0
+    assert np.array_equal(gas.tc1, read_bag(tmp_path / "again", topics=gas_topics).tc1)
     with next((tmp_path / "out").glob("*.mcap")).open("rb") as handle:
         chunks = make_reader(handle).get_summary().chunk_indexes
     assert {chunk.compression for chunk in chunks} == {"zstd" if compress else ""}

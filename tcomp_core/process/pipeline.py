@@ -77,7 +77,8 @@ class ProcessConfig:
     diagnose_samples : int
         The diagnosis sees at most the last this many pairs.
     compress : bool
-        zstd-compress the output bag's chunks.
+        zstd-compress the output bag's chunks (default: the output is about a third of the
+        size and writes faster).
     overwrite : bool
         Replace an existing output.
     frame_id : str
@@ -93,7 +94,7 @@ class ProcessConfig:
     columns: tuple[str, str, str | None] = DEFAULT_COLUMNS
     diagnose: bool = True
     diagnose_samples: int = 20_000
-    compress: bool = False
+    compress: bool = True
     overwrite: bool = False
     frame_id: str = ""
     hardware_id: str = "thermocouple-pair"
