@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from ..io import GAS_TOPIC, TEMPERATURE_TYPE, _offered_qos
 from .mcap_write import McapBagWriter
+from .rows import column
 from .temperature_codec import TemperatureBatch, encode
 
 __all__ = [
@@ -113,7 +114,7 @@ class BagOutput:
             return
         if role not in self._inputs:
             topic = self._input_topics[role]
-            source_id = int(records[0][0, 9:11].view("<u2")[0]) if records else None
+            source_id = int(column(records[0], 9, "<u2")[0]) if records else None
             self._inputs[role] = self._writer.add_channel(
                 topic, TEMPERATURE_TYPE, _offered_qos(), channel_id=source_id, qos_text=qos_text
             )
