@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -136,15 +137,18 @@ class Evaluator:
 
     def fit(self, model: Model) -> Model:
         """Fit ``model`` on the estimation blocks."""
-        return model.fit(*self._fit_inputs(), self.data.training_rows)
+        return model.fit(*self._fit_inputs, self.data.training_rows)
 
-    def _fit_inputs(self):
+    @cached_property
+    def _fit_inputs(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], FitContext]:
         """The readings the fits see, and their context: low-passed above both signal bands.
 
         Above the faster sensor's band edge the readings hold only noise, which the inverse
         models amplify as the frequency squared; the low-pass (zero phase, so the two chains'
         relation is kept) removes it, and the context's kernel tells the residual
-        normalisation how much is left.
+        normalisation how much is left. Computed once per record, for all the fits.
         """
         if self.fit_cutoff_hz is None:
             return self.data.tc1, self.data.tc2, self.context
@@ -168,7 +172,7 @@ class Evaluator:
         all the data (half the variance). The simulation and reconstructions follow the new
         parameters; the errors remain those of the held-out test.
         """
-        model = Model(fit.effects, fit.params).fit(*self._fit_inputs())
+        model = Model(fit.effects, fit.params).fit(*self._fit_inputs)
         readings = self.readings
         fast = 3 - self.slow
         measured = readings[self.slow - 1]

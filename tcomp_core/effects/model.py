@@ -277,14 +277,9 @@ class Model:
                 f"{n_rows} usable samples are too few for {len(specs)} parameters"
             )
         fixed = {k: v for effect in self.instances for k, v in effect.fixed(context).items()}
-        settings = {
-            name: self.params[name]
-            for effect in self.instances
-            for choice in effect.setting_choices[:1]
-            for name in choice
-            if name in self.params
-        }
-        fixed = {**settings, **fixed}
+        # Settings (Effect.setting_choices) are neither searched nor measured: carried over.
+        setting_names = {n for e in self.instances for c in e.setting_choices for n in c}
+        fixed = {**{n: self.params[n] for n in setting_names & self.params.keys()}, **fixed}
 
         def unpack(x: NDArray[np.float64]) -> dict[str, float]:
             values = dict(fixed)

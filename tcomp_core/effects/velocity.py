@@ -15,6 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import BSpline
 
+from ..errors import TcompError
+from ..tracking import track_tau
 from .base import Effect, FitContext, ParamSpec
 
 __all__ = ["Velocity"]
@@ -86,9 +88,6 @@ class Velocity(Effect):
         A strong, fast velocity change leaves the constant-τ start far from the optimum; the
         tracked common scale, projected on the spline, starts the search near it.
         """
-        from ..errors import TcompError
-        from ..tracking import track_tau
-
         try:
             track = track_tau(
                 tc1,
