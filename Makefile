@@ -1,4 +1,4 @@
-# make demo | make test | make bench | make lint
+# make demo | make test | make test-fast | make bench | make lint
 # Each target bootstraps .venv on first use. With a sourced ROS 2 install ($ROS_DISTRO set) the
 # venv sees the system packages and the ROS wheels are not installed; otherwise the pinned Jazzy
 # wheels come from PyPI through the `ros` extra.
@@ -17,7 +17,7 @@ VENV_FLAGS :=
 EXTRAS := ros,test
 endif
 
-.PHONY: demo test bench lint clean
+.PHONY: demo test test-fast bench lint clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV_FLAGS) $(VENV)
@@ -25,8 +25,14 @@ $(STAMP): setup.py setup.cfg package.xml
 	$(PY) -m pip install --quiet -e '.[$(EXTRAS)]'
 	touch $(STAMP)
 
+# Everything: all tests, then the static checks (ruff, mypy).
 test: $(STAMP)
 	$(PY) -m pytest
+	@$(MAKE) --no-print-directory lint
+
+# The edit-test loop: the tests not marked slow (see the markers in pyproject.toml).
+test-fast: $(STAMP)
+	$(PY) -m pytest -m "not slow"
 
 demo: $(STAMP)
 	$(PY) -m tcomp_core.demo --out $(OUT)/demo
@@ -36,6 +42,7 @@ demo: $(STAMP)
 		--param prefilter_hz:=200.0 --param update_period_s:=0.25
 
 bench: $(STAMP)
+	$(PY) bench/bench_startup.py
 	$(PY) bench/bench_scatter_vs_svd.py
 	$(PY) bench/bench_accuracy.py
 	$(PY) bench/bench_reconstruction.py
@@ -46,6 +53,7 @@ bench: $(STAMP)
 lint: $(STAMP)
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
+	$(PY) -m mypy
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info

@@ -40,7 +40,7 @@ setup(
     ],
     extras_require={
         "ros": ROS_WHEELS,
-        "test": ["pytest>=8", "ruff>=0.5"],
+        "test": ["pytest>=8", "ruff>=0.5", "mypy>=2", "scipy-stubs>=1.17", "pybag-sdk==0.13.0"],
     },
     zip_safe=True,
     entry_points={

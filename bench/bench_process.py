@@ -13,7 +13,8 @@ first-order lags), written with the bulk encoder. Then, in the same run:
 Both output modes run: uncompressed (``--no-compress``, rosbag2's default) then zstd chunks
 (``tcomp process``'s default).
 
-Usage: ``python bench/bench_process.py [--minutes 10]``.
+Usage: ``python bench/bench_process.py [--minutes 10] [--rate-hz 5000]`` (another rate, e.g.
+2000, generates and caches its own bag).
 """
 
 from __future__ import annotations
@@ -29,9 +30,8 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from tcomp_core.io import DEFAULT_TOPICS, TEMPERATURE_TYPE, _offered_qos
-from tcomp_core.process import ProcessConfig, encode, process
-from tcomp_core.process.mcap_write import McapBagWriter
+from tcomp_core.io import DEFAULT_TOPICS, TEMPERATURE_TYPE, McapBagWriter, encode, offered_qos
+from tcomp_core.process import ProcessConfig, process
 
 RATE_HZ = 5000
 TAU = (0.0238, 0.1168)
@@ -39,21 +39,21 @@ START_NS = 1_700_000_000 * 1_000_000_000
 BLOCK = 5_000
 
 
-def make_bag(path: Path, minutes: float, seed: int = 7) -> Path:
-    """Write the benchmark bag block by block (bounded memory)."""
+def make_bag(path: Path, minutes: float, seed: int = 7, rate_hz: int = RATE_HZ) -> Path:
+    """Write the benchmark bag block by block (bounded memory), ``rate_hz`` samples/s."""
     rng = np.random.default_rng(seed)
-    count = round(minutes * 60 * RATE_HZ)
-    dt = 1.0 / RATE_HZ
+    count = round(minutes * 60 * rate_hz)
+    dt = 1.0 / rate_hz
     poles = [np.exp(-dt / tau) for tau in TAU]
     states = [None, None]
     writer = McapBagWriter(path, compress=True)
-    qos = _offered_qos()
+    qos = offered_qos()
     channels = [writer.add_channel(topic, TEMPERATURE_TYPE, qos) for topic in DEFAULT_TOPICS[:2]]
     for start in range(0, count, BLOCK):
         index = np.arange(start, min(start + BLOCK, count))
         time_s = index * dt
         gas = 300.0 + 50.0 * np.sin(2 * np.pi * 10.0 * time_s) + 20.0 * np.sin(2 * np.pi * time_s)
-        stamps = START_NS + index * (1_000_000_000 // RATE_HZ)
+        stamps = START_NS + index * (1_000_000_000 // rate_hz)
         for k, (pole, channel) in enumerate(zip(poles, channels, strict=True)):
             zi = states[k] if states[k] is not None else np.array([pole * gas[0]])
             measured, states[k] = signal.lfilter([1 - pole], [1, -pole], gas, zi=zi)
@@ -83,15 +83,17 @@ def plain_loop_rate(bag: Path, limit: int) -> tuple[float, int]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=10.0)
+    parser.add_argument("--rate-hz", type=int, default=RATE_HZ, help="sample rate of the bag")
     parser.add_argument("--loop-messages", type=int, default=200_000)
     parser.add_argument("--cache", type=Path, default=Path("out/bench_process"))
     args = parser.parse_args(argv)
-    bag = args.cache / f"sine_5khz_{args.minutes:g}min"
+    suffix = "" if args.rate_hz == RATE_HZ else f"_{args.rate_hz}hz"
+    bag = args.cache / f"sine_5khz_{args.minutes:g}min{suffix}"
     if not (bag / "metadata.yaml").is_file():
         shutil.rmtree(bag, ignore_errors=True)
         bag.parent.mkdir(parents=True, exist_ok=True)
         started = time.perf_counter()
-        make_bag(bag, args.minutes)
+        make_bag(bag, args.minutes, rate_hz=args.rate_hz)
         print(f"generated {bag} in {time.perf_counter() - started:.1f} s")
     size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
     runs = []

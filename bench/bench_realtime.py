@@ -22,7 +22,7 @@ Phase 2 – the compensator under load
     each sample is scheduled, values are :func:`tcomp_core.simulate.simulate_pair` (10 Hz
     sinusoid, τ1 = 0.0238 s, τ2 = 0.1168 s, K = 1 %). The publisher sleeps ``--pub-period-ms``
     (1 ms) between batches and publishes every sample whose scheduled time has come, tc1 then
-    tc2, pre-serialized (:class:`tcomp_ros.temperature_cdr.Encoder`), so it offers the full rate
+    tc2, pre-serialized (:class:`tcomp_core.io.Encoder`), so it offers the full rate
     in ~5-sample batches; it reports the achieved rate and how late its batches were. A
     *measurer* process subscribes ``gas_temperature`` and keeps, per
     message, its stamp and receive wall time; the latency is ``receive time − input stamp of the
@@ -101,8 +101,8 @@ def child_publisher(args: argparse.Namespace) -> None:
     from rclpy.duration import Duration
     from sensor_msgs.msg import Temperature
 
+    from tcomp_core.io import Encoder
     from tcomp_core.simulate import simulate_pair
-    from tcomp_ros.temperature_cdr import Encoder
 
     rate = float(round(args.rate))
     n = round(rate * args.duration)

@@ -48,13 +48,13 @@ class TimedCompensatorNode(CompensatorNode):
     def _process(self) -> None:
         start = time.perf_counter()
         self.process_starts.append(start)
-        before = self._published
-        inbox = (len(self._inbox[0]), len(self._inbox[1]), self._matcher.counters.matched)
+        before = self.engine.published
+        inbox = (len(self._inbox[0][0]), len(self._inbox[1][0]), self.engine.counters.matched)
         super()._process()
         elapsed = time.perf_counter() - start
         self.timings["_process"].append(elapsed)
         self.trace.append((start, *inbox, elapsed))
-        self.batch_pairs.append(self._published - before)
+        self.batch_pairs.append(self.engine.published - before)
 
     def _update_estimate(self) -> None:
         start = time.perf_counter()
@@ -81,8 +81,8 @@ class TimedCompensatorNode(CompensatorNode):
         result["batch_pairs"] = summarise(pairs)
         result["process_us_per_pair"] = summarise(per_pair_us)
         result["process_interval_ms"] = summarise(np.diff(self.process_starts) * 1e3)
-        result["received"] = [sensor.received for sensor in self._sensors]
-        result["published"] = self._published
+        result["received"] = list(self.received)
+        result["published"] = self.engine.published
         return result
 
 

@@ -13,6 +13,8 @@ __all__ = [
     "NoExcitationError",
     "PhysicalRangeError",
     "TcompError",
+    "TcompWarning",
+    "TruncatedInputWarning",
 ]
 
 
@@ -34,3 +36,14 @@ class EstimationError(TcompError, ArithmeticError):
 
 class PhysicalRangeError(EstimationError, ValueError):
     """An estimated discrete pole ``a`` lies outside (0, 1), so no positive time constant fits."""
+
+
+class TcompWarning(UserWarning):
+    """Base class of every warning tcomp issues on purpose (never a RuntimeWarning).
+
+    The ``tcomp`` command prints each as one line ``tcomp VERB: warning: MESSAGE``.
+    """
+
+
+class TruncatedInputWarning(TcompWarning):
+    """An input ends early (a bag still being written, or cut off); it was read up to there."""

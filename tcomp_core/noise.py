@@ -48,7 +48,10 @@ class NoiseEstimate:
 
 def _welch(values: NDArray[np.float64], dt: float) -> tuple[NDArray, NDArray, int]:
     nperseg = int(min(_SEGMENT, max(16, values.size // 8)))
-    freqs, psd = signal.welch(values, fs=1.0 / dt, nperseg=nperseg, detrend="linear")
+    # scipy-stubs 1.17 spells the detrend option "linear" as "literal".
+    freqs, psd = signal.welch(  # type: ignore[call-overload]
+        values, fs=1.0 / dt, nperseg=nperseg, detrend="linear"
+    )
     n_segments = max(1, (values.size - nperseg) // (nperseg // 2) + 1)
     return freqs, psd, n_segments
 

@@ -15,19 +15,16 @@ with σ1²/σ2² = φ. The paper's alternatives (plain average, faster sensor on
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .choices import COMBINATIONS, Combination
 from .filters import postfilter
 from .models import FirstOrderLag
 from .validation import check_pair, check_sample_interval
 
 __all__ = ["COMBINATIONS", "Combination", "Reconstruction", "combination_weight", "reconstruct"]
-
-Combination = Literal["inverse-variance", "mean", "tc1", "tc2"]
-COMBINATIONS: tuple[str, ...] = get_args(Combination)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,7 +114,11 @@ def reconstruct(
         gas1 = postfilter(gas1, dt, postfilter_hz)
         gas2 = postfilter(gas2, dt, postfilter_hz)
     weight1 = combination_weight(sensor1.pole(dt), sensor2.pole(dt), phi, combine)
-    times = np.arange(first.size) * dt if time is None else np.asarray(time, dtype=np.float64)
+    times = (
+        np.arange(first.size, dtype=np.float64) * dt
+        if time is None
+        else np.asarray(time, dtype=np.float64)
+    )
     if times.shape != first.shape:
         raise ValueError(f"time has shape {times.shape}, the signals {first.shape}")
     return Reconstruction(

@@ -14,6 +14,7 @@ import math
 from collections.abc import Iterable, Sequence
 from html import escape
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -115,7 +116,7 @@ def _zoom(diagnosis: Diagnosis) -> slice:
     return slice(start, start + length)
 
 
-def _plot(ax: Axes, time: NDArray, values: NDArray, **style: object) -> None:
+def _plot(ax: Axes, time: NDArray, values: NDArray, **style: Any) -> None:
     step = max(1, values.size // MAX_POINTS)
     ax.plot(time[::step], values[::step], **style)
 

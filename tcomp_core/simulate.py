@@ -11,11 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal, get_args
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .choices import PAPER_DT, PAPER_DURATION, PAPER_TAU1, PAPER_TAU2, SIGNALS, SignalKind
 from .models import FirstOrderLag
 from .validation import check_sample_interval
 
@@ -31,15 +31,6 @@ __all__ = [
     "simulate_pair",
     "sinusoid",
 ]
-
-SignalKind = Literal["sinusoid", "ramp", "multisine", "exhaust"]
-SIGNALS: tuple[str, ...] = get_args(SignalKind)
-
-#: Paper's simulation conditions (Sec. IV): τ1, τ2, τ_s in seconds, run length 10 s.
-PAPER_TAU1 = 0.0238
-PAPER_TAU2 = 0.1168
-PAPER_DT = 0.002
-PAPER_DURATION = 10.0
 
 
 def sinusoid(
@@ -246,7 +237,7 @@ def simulate_pair(
     if not duration > 0.0:
         raise ValueError(f"{duration=} must be > 0 s")
     n = round(duration / dt)
-    time = np.arange(n) * dt
+    time = np.arange(n, dtype=np.float64) * dt
     gas = gas_signal(kind, time, **(signal_params or {}))
     clean1 = FirstOrderLag(tau=tau1).respond(gas, dt)
     clean2 = FirstOrderLag(tau=tau2).respond(gas, dt)

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, signal
 
+from .choices import EFFECT_NAMES
 from .simulate import PAPER_DT, PAPER_TAU1, PAPER_TAU2, SignalKind, add_noise, gas_signal
 from .validation import check_sample_interval
 
@@ -47,15 +48,6 @@ __all__ = [
     "default_effect_params",
     "simulate_effect",
 ]
-
-EFFECT_NAMES: tuple[str, ...] = (
-    "conduction",
-    "radiation",
-    "velocity",
-    "delay",
-    "calibration",
-    "noise_ratio",
-)
 
 #: Offset between degrees C and kelvin. Kept here so the simulator imports nothing of the
 #: effect library it is meant to test.
@@ -244,7 +236,10 @@ def _lti_response(
     """
     # The first-order hold is exact for an input linear between grid points; a zero state
     # and a zero initial deviation mean equilibrium with gas[0].
-    b, a, _ = signal.cont2discrete((numerator, denominator), step, method="foh")
+    # scipy-stubs 1.17 takes a 2-D numerator only; scipy takes the 1-D one of a SISO system.
+    b, a, _ = signal.cont2discrete(  # type: ignore[call-overload]
+        (numerator, denominator), step, method="foh"
+    )
     return gas[0] + signal.lfilter(np.ravel(b), a, gas - gas[0])
 
 
@@ -257,7 +252,8 @@ def _conduction_tf(
     tau: float, kappa: float, tau_p: float
 ) -> tuple[list[float], NDArray[np.float64]]:
     """G(s) = [1 + κ/(1 + τp s)] / (1 + κ + τ s) = (1 + κ + τp s) / ((1 + τp s)(1 + κ + τ s))."""
-    return [tau_p, 1.0 + kappa], np.polymul([tau_p, 1.0], [tau, 1.0 + kappa])
+    denominator = np.polymul([tau_p, 1.0], [tau, 1.0 + kappa])
+    return [tau_p, 1.0 + kappa], np.asarray(denominator, dtype=np.float64)
 
 
 def _radiation_equilibrium(gas_k: float, r: float, wall_k: float) -> float:
@@ -376,7 +372,8 @@ def _linear_rk4_response(
 
 def _fine_time(n: int, dt: float, points_per_sample: int) -> NDArray[np.float64]:
     """Uniform grid from 0 to the last sample instant with ``points_per_sample`` per interval."""
-    return np.arange((n - 1) * points_per_sample + 1) * (dt / points_per_sample)
+    count = (n - 1) * points_per_sample + 1
+    return np.arange(count, dtype=np.float64) * (dt / points_per_sample)
 
 
 def _delayed_gas(
@@ -517,7 +514,7 @@ def simulate_effect(
     rng = np.random.default_rng(seed)
     tc1, tc2, sigma1, sigma2 = add_noise(clean1, clean2, noise_percent, phi, rng)
     return EffectRecord(
-        time=np.arange(n) * dt,
+        time=np.arange(n, dtype=np.float64) * dt,
         gas=gas,
         tc1=tc1,
         tc2=tc2,

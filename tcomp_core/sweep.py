@@ -71,7 +71,10 @@ class SweepResult:
 
 def fundamental_frequency(values: NDArray[np.float64], dt: float) -> float:
     """Frequency of the largest periodogram line of a signal, excluding DC, in Hz."""
-    freqs, power = signal.periodogram(values, fs=1.0 / dt, detrend="linear")
+    # scipy-stubs 1.17 spells the detrend option "linear" as "literal".
+    freqs, power = signal.periodogram(  # type: ignore[call-overload]
+        values, fs=1.0 / dt, detrend="linear"
+    )
     power[0] = 0.0
     return float(freqs[int(np.argmax(power))])
 

@@ -1,10 +1,13 @@
 """Compensator node: two Temperature topics in, reconstructed gas temperature and diagnostics out.
 
-Subscribes ``tc1/temperature`` and ``tc2/temperature`` (relative names, remappable), pairs their
-samples by ``header.stamp`` (:class:`~tcomp_ros.pairing.PairMatcher`), feeds the pairs to the
-core's :class:`~tcomp_core.online.OnlineCompensator`, re-estimates τ1 and τ2 on a timer and
+Subscribes ``tc1/temperature`` and ``tc2/temperature`` (relative names, remappable) and hands
+their samples to the core's online engine (:class:`~tcomp_core.online.Engine`: pair matching by
+``header.stamp``, window, reconstruction, health), re-estimates τ1 and τ2 on a timer and
 publishes ``gas_temperature`` (one message per reconstructed pair, stamped with that pair's
-sample time) and ``/diagnostics`` once a second.
+sample time) and ``/diagnostics`` once a second. The node is an adapter: messages in,
+parameters to config (validated in the on-set callback, applied in the post-set callback),
+timers; every time the engine sees is the node's clock (``now``), so ``use_sim_time`` works and
+``tcomp process`` (which passes stamp time) reads the same.
 
 Every ``diagnosis_period_s`` while the first-order fit is poor or effects are set (and at once
 when the parameter ``effects`` changes) the longest gap-free stretch of the window is diagnosed
@@ -16,7 +19,7 @@ effects and the top suspect; the published reconstruction stays first-order. A m
 is not diagnosed: a job costs seconds of CPU, which a 2-core machine feels in the latency.
 
 Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
-(:mod:`~tcomp_ros.temperature_cdr`, falling back to rclpy's deserializer for other layouts), and
+(:func:`tcomp_core.io.decode_message`, the one Temperature codec, with its rosbags fallback), and
 the callbacks only append to an inbox; a 5 ms timer drains it in batches and publishes serialized
 outputs, so the Python cost per message stays a few microseconds.
 """
@@ -44,34 +47,32 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from rclpy.timer import Timer
 from sensor_msgs.msg import Temperature
 
 from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
 from tcomp_core.estimators import METHODS
+from tcomp_core.io import Encoder, decode_message
 from tcomp_core.online import (
+    DIAGNOSTICS_PERIOD_S,
     RECONSTRUCT_FROM,
     RECONSTRUCTIONS,
     SIGNAL_MODELS,
-    EstimateStatus,
-    OnlineCompensator,
+    Engine,
+    Health,
+    Level,
     OnlineConfig,
 )
-from tcomp_core.status_values import engine_values
-from tcomp_core.status_values import format_value as _fmt
+from tcomp_core.online.health import format_value as _fmt
 
-from .health import Level, SensorActivity, assess
-from .pairing import PairMatcher
 from .spin import spin_until_shutdown
-from .temperature_cdr import Encoder, decode
 
 __all__ = ["CompensatorNode", "main"]
 
 #: Period of the timer that drains the inbox, match pairs and publishes, seconds.
 PROCESS_PERIOD_S = 0.005
-#: Period of the diagnostics, seconds (as diagnostic_updater's default).
-DIAGNOSTICS_PERIOD_S = 1.0
 INPUT_QOS = QoSProfile(
     depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
 )
@@ -257,29 +258,30 @@ class CompensatorNode(Node):
         for name, (default, descriptor) in PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
         self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
-        self._engine = OnlineCompensator(self._engine_config(self._values))
+        self._engine = Engine(
+            self._engine_config(self._values),
+            slop_ns=round(float(self._values["sync_slop_s"]) * 1e9),
+            queue_size=int(self._values["queue_size"]),
+            update_period_s=float(self._values["update_period_s"]),
+            silence_timeout_s=float(self._values["silence_timeout_s"]),
+        )
         self._effects = self._diagnosis_effects(self._values)
-        self._matcher = self._new_matcher(self._values)
-        self._inbox: list[list[tuple[int, float]]] = [[], []]
-        self._sensors = [SensorActivity("tc1"), SensorActivity("tc2")]
-        self._last_heard = [math.nan, math.nan]
-        self._counted_at_report = [0, 0]
-        self._report_time = time.monotonic()
-        self._accepted_at = math.nan
+        # Per input: stamps (ns) and values of the messages not yet handed to the engine.
+        self._inbox: list[tuple[list[int], list[float]]] = [([], []), ([], [])]
+        self._received = [0, 0]
         self._frame_id = ""
-        self._published = 0
         self._engine_errors = 0
         self._latency = LatencyHistogram()
-        self._status: EstimateStatus | None = None
         self._diagnoser = BackgroundDiagnoser()
         self._diagnosis: dict[str, Any] = {}  # the latest successful diagnosis
         self._diagnosis_error = ""
-        self._diagnosis_at = math.nan  # when the data of that diagnosis were taken (monotonic)
+        self._diagnosis_at = math.nan  # when the data of that diagnosis were taken (clock, s)
         self._submitted_at = math.nan
         # Start a job as soon as the window is long enough and the worker free.
         self._diagnosis_wanted = bool(self._effects)
 
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
         self._gas_pub = self.create_publisher(Temperature, "gas_temperature", OUTPUT_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         for index, topic in enumerate(("tc1/temperature", "tc2/temperature")):
@@ -292,7 +294,7 @@ class CompensatorNode(Node):
             self._values["update_period_s"], self.update_estimate
         )
         self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
-        self._diagnosis_timer = None
+        self._diagnosis_timer: Timer | None = None
         self._start_diagnosis_timer()
 
     def destroy_node(self) -> None:
@@ -300,20 +302,28 @@ class CompensatorNode(Node):
         self._diagnoser.close()
         super().destroy_node()
 
+    # -- state -------------------------------------------------------------------------------
+    @property
+    def engine(self) -> Engine:
+        """The online engine (read it, do not feed it: the node's callbacks do)."""
+        return self._engine
+
+    @property
+    def received(self) -> tuple[int, int]:
+        """Messages received per input, ``(tc1, tc2)``, whether handed to the engine yet or not."""
+        return self._received[0], self._received[1]
+
+    def _now(self) -> float:
+        """The node's clock, seconds (ROS time: simulated time under ``use_sim_time``)."""
+        return self.get_clock().now().nanoseconds * 1e-9
+
     # -- parameters --------------------------------------------------------------------------
     @staticmethod
-    def _engine_config(values: dict[str, object]) -> OnlineConfig:
+    def _engine_config(values: dict[str, Any]) -> OnlineConfig:
         return OnlineConfig(**{name: values[name] for name in ENGINE_PARAMETERS})
 
     @staticmethod
-    def _new_matcher(values: dict[str, object]) -> PairMatcher:
-        return PairMatcher(
-            slop_ns=round(float(values["sync_slop_s"]) * 1e9),
-            queue_size=int(values["queue_size"]),
-        )
-
-    @staticmethod
-    def _diagnosis_effects(values: dict[str, object]) -> tuple[str, ...]:
+    def _diagnosis_effects(values: dict[str, Any]) -> tuple[str, ...]:
         """The requested effects; raises ValueError on a bad name or diagnosis period."""
         period = float(values["diagnosis_period_s"])
         if 0.0 < period < MIN_DIAGNOSIS_PERIOD_S:
@@ -343,21 +353,34 @@ class CompensatorNode(Node):
         if self._effects or (status is not None and status.poor_fit):
             self.start_diagnosis()
 
-    def _on_set_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
-        """Validate a parameter change as a whole; apply it only when every value is sound."""
+    def _validate_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
+        """On-set callback: accept a change only when every value is sound, as a whole."""
         values = dict(self._values)
         values.update({parameter.name: parameter.value for parameter in parameters})
         try:
-            config = self._engine_config(values)
-            effects = self._diagnosis_effects(values)
+            self._engine_config(values)
+            self._diagnosis_effects(values)
         except (ValueError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters: Sequence[Parameter]) -> None:
+        """Post-set callback: apply a change the on-set callback has accepted."""
+        values = dict(self._values)
+        values.update({parameter.name: parameter.value for parameter in parameters})
         changed = {name for name in values if values[name] != self._values[name]}
         self._values = values
         if changed & set(ENGINE_PARAMETERS):
-            self._engine.reconfigure(config)
+            self._engine.compensator.reconfigure(self._engine_config(values))
         if changed & {"sync_slop_s", "queue_size"}:
-            self._matcher = self._new_matcher(values)
+            self._engine.set_matching(
+                round(float(values["sync_slop_s"]) * 1e9), int(values["queue_size"])
+            )
+        if changed & {"update_period_s", "silence_timeout_s"}:
+            self._engine.set_timing(
+                float(values["update_period_s"]), float(values["silence_timeout_s"])
+            )
+        effects = self._diagnosis_effects(values)
         if "update_period_s" in changed:
             self._estimate_timer.cancel()
             self.destroy_timer(self._estimate_timer)
@@ -374,69 +397,61 @@ class CompensatorNode(Node):
             self.get_logger().info(
                 "parameters changed: " + ", ".join(f"{n}={values[n]!r}" for n in sorted(changed))
             )
-        return SetParametersResult(successful=True)
 
     # -- data path ---------------------------------------------------------------------------
     def _on_sample(self, index: int, data: bytes) -> None:
+        """Subscription callback: decode the stamp and value and put them in the inbox."""
         try:
-            stamp, frame_id, value, _ = decode(data)
+            stamp, frame_id, value, _ = decode_message(data)
         except ValueError:  # another CDR layout: let rclpy decode it
             message = deserialize_message(data, Temperature)
             stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
             frame_id, value = message.header.frame_id, message.temperature
-        sensor = self._sensors[index]
-        sensor.received += 1
-        self._last_heard[index] = time.monotonic()
-        if not math.isfinite(value):
-            sensor.invalid += 1
-            sensor.invalid_since_report += 1
-            sensor.last_invalid = f"{value!r} at stamp {stamp * 1e-9:.6f} s"
-            return
+        self._received[index] += 1
         if index == 0 and not self._frame_id:
             self._frame_id = frame_id
-        self._inbox[index].append((stamp, value))
+        stamps, values = self._inbox[index]
+        stamps.append(stamp)
+        values.append(value)
 
     def _process(self) -> None:
-        pairs: list[tuple[int, float, float]] = []
+        """Timer: hand the inbox to the engine and publish the gas samples it reconstructs."""
+        now = self._now()
+        engine = self._engine
         for index in (0, 1):
-            inbox, self._inbox[index] = self._inbox[index], []
-            for stamp, value in inbox:
-                pairs.extend(self._matcher.add(index, stamp, value))
-        if not pairs:
-            return
-        stamps, tc1, tc2 = zip(*pairs, strict=True)
+            stamps, values = self._inbox[index]
+            if stamps:
+                self._inbox[index] = ([], [])
+                engine.add_samples(index, stamps, values, now)
         try:
-            out_stamps, gas = self._engine.add_pairs(stamps, tc1, tc2)
+            out = engine.reconstruct()
         except DataError as exc:  # never die on data: count, report, carry on
             self._engine_errors += 1
             self.get_logger().warning(f"pairs refused: {exc}", throttle_duration_sec=5.0)
+            return
+        if not out.stamps_ns.size:
             return
         frame_id = self._values["frame_id"] or self._frame_id
         if frame_id != self._encoder.frame_id:
             self._encoder = Encoder(frame_id)
         encode, publish = self._encoder.encode, self._gas_pub.publish
-        outputs = zip(
-            out_stamps.tolist(), gas.tolist(), self._engine.last_variance.tolist(), strict=True
-        )
+        outputs = zip(out.stamps_ns.tolist(), out.gas.tolist(), out.variance.tolist(), strict=True)
         for stamp, value, variance in outputs:
             publish(encode(stamp, value, variance))
-        self._published += len(gas)
-        if gas.size and self._engine.period_s:
+        period = engine.compensator.period_s
+        if period:
             # From the stamp of the input pair that completed each output to its publication.
-            inputs = out_stamps + round(self._engine.period_s * 1e9)
+            inputs = out.stamps_ns + round(period * 1e9)
             self._latency.add((time.time_ns() - inputs) * 1e-6)
 
     @property
     def matched_pairs(self) -> int:
         """Sample pairs matched so far."""
-        return self._matcher.counters.matched
+        return self._engine.counters.matched
 
     def update_estimate(self) -> None:
         """Re-estimate τ1, τ2 now (the timer calls this every ``update_period_s``)."""
-        status = self._engine.update_estimate()
-        self._status = status
-        if status.accepted:
-            self._accepted_at = time.monotonic()
+        self._engine.update_estimate(self._now())
 
     # -- background diagnosis ----------------------------------------------------------------
     def _diagnosis_segment(self) -> np.ndarray | None:
@@ -444,11 +459,10 @@ class CompensatorNode(Node):
 
         At most its newest :data:`MAX_DIAGNOSIS_S` seconds; degrees C.
         """
-        window = self._engine._window  # the engine's sliding window (no public accessor)
-        period = self._engine.period_s
-        if window is None or not period:
+        period = self._engine.compensator.period_s
+        if not period:
             return None
-        longest = max(np.split(window.samples, window.segment_starts), key=len)
+        longest = self._engine.compensator.longest_segment()
         needed = max(MIN_DIAGNOSIS_SAMPLES, round(MIN_DIAGNOSIS_S / period))
         if longest.shape[0] < needed:
             return None
@@ -466,7 +480,7 @@ class CompensatorNode(Node):
         segment = self._diagnosis_segment()
         if segment is None or self._diagnoser.busy:
             return False
-        period = float(self._engine.period_s)
+        period = float(self._engine.compensator.period_s or math.nan)
         status = self._engine.last_status
         try:
             started = self._diagnoser.submit(
@@ -484,7 +498,7 @@ class CompensatorNode(Node):
             )
             return False
         if started:
-            self._submitted_at = time.monotonic()
+            self._submitted_at = self._now()
             self._diagnosis_wanted = False
         return started
 
@@ -526,51 +540,20 @@ class CompensatorNode(Node):
         }
 
     # -- diagnostics -------------------------------------------------------------------------
-    def health_status(self) -> DiagnosticStatus:
-        """The current diagnostic status (also published once a second)."""
-        now = time.monotonic()
-        elapsed = max(now - self._report_time, 1e-9)
-        for index, sensor in enumerate(self._sensors):
-            sensor.silent_for_s = now - self._last_heard[index]
-            if math.isnan(sensor.silent_for_s):
-                sensor.silent_for_s = math.inf
-            sensor.rate_hz = (sensor.received - self._counted_at_report[index]) / elapsed
-        status = self._status
-        counters = self._matcher.counters
-        values = {
-            **engine_values(self._engine, status),
-            "rate_tc1_hz": _fmt(self._sensors[0].rate_hz),
-            "rate_tc2_hz": _fmt(self._sensors[1].rate_hz),
-            "received_tc1": str(self._sensors[0].received),
-            "received_tc2": str(self._sensors[1].received),
-            "matched": str(counters.matched),
-            "dropped": str(counters.unmatched + counters.late + counters.duplicates),
-            "unmatched": str(counters.unmatched),
-            "out_of_order": str(counters.late),
-            "duplicates": str(counters.duplicates),
-            "invalid_tc1": str(self._sensors[0].invalid),
-            "invalid_tc2": str(self._sensors[1].invalid),
-            "published": str(self._published),
-            "estimate_age_s": _fmt(now - self._accepted_at),
-            **self._diagnosis_values(now),
-            **self._latency.summary(),
-        }
-        health = assess(
-            self._sensors,
-            silence_timeout_s=float(self._values["silence_timeout_s"]),
-            estimate_age_s=now - self._accepted_at
-            if math.isfinite(self._accepted_at)
-            else math.inf,
-            stale_after_s=3.0 * float(self._values["update_period_s"]) + DIAGNOSTICS_PERIOD_S,
-            status_reason=status.reason if status else "",
-            accepted=bool(status and status.accepted),
-            poor_fit=bool(status and status.poor_fit),
-            model_error_pct=status.model_error_pct if status else math.nan,
-            max_model_error_pct=float(self._values["max_model_error_pct"]),
-            values=values,
-        )
+    def health_status(self, new_period: bool = False) -> DiagnosticStatus:
+        """The current diagnostic status (also published once a second).
+
+        Parameters
+        ----------
+        new_period : bool
+            Start a new report period (the diagnostics timer does).
+        """
+        now = self._now()
+        extra = {**self._diagnosis_values(now), **self._latency.summary()}
+        health: Health = self._engine.report(now, extra, new_period=new_period)
         message = health.message
-        suspect = values["top_suspect"]
+        status = self._engine.last_status
+        suspect = health.values["top_suspect"]
         if health.level == Level.WARN and status and status.poor_fit and suspect != "none":
             message += f"; top suspect: {suspect}"
         return DiagnosticStatus(
@@ -591,15 +574,11 @@ class CompensatorNode(Node):
             self.start_diagnosis()
         else:
             self._collect_diagnosis()
-        status = self.health_status()
+        status = self.health_status(new_period=True)
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()
         array.status = [status]
         self._diag_pub.publish(array)
-        self._report_time = time.monotonic()
-        self._counted_at_report = [sensor.received for sensor in self._sensors]
-        for sensor in self._sensors:
-            sensor.invalid_since_report = 0
         self._latency.new_period()
 
 
@@ -647,7 +626,7 @@ class LatencyHistogram:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Entry point of ``compensator_node`` (accepts ``--ros-args``)."""
-    rclpy.init(args=args)
+    rclpy.init(args=None if args is None else list(args))
     try:
         node = CompensatorNode()
     except (ParameterException, ValueError) as exc:  # a bad value given at start

@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -32,7 +34,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Temperature
 
-from tcomp_core.errors import DataError
+from tcomp_core.errors import DataError, TruncatedInputWarning
 from tcomp_core.io import DEFAULT_TOPICS, read_bag
 from tcomp_core.simulate import SIGNALS, simulate_pair
 
@@ -134,7 +136,12 @@ class ReplayNode(Node):
     def _load_bag(self, path: Path) -> None:
         if not str(path) or str(path) == ".":
             raise DataError("parameter 'bag' is empty: give the bag to replay")
-        record = read_bag(path)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", TruncatedInputWarning)
+            record = read_bag(path)
+        for warning in caught:  # a bag cut short replays up to its last complete record
+            if issubclass(warning.category, TruncatedInputWarning):
+                self.get_logger().warning(str(warning.message))
         self.topics = [DEFAULT_TOPICS[0].lstrip("/"), DEFAULT_TOPICS[1].lstrip("/")]
         columns = [record.tc1, record.tc2]
         if record.ref is not None:
@@ -149,7 +156,7 @@ class ReplayNode(Node):
             f"{self.rate:g}x"
         )
 
-    def _simulate(self, value: dict[str, object]) -> None:
+    def _simulate(self, value: dict[str, Any]) -> None:
         duration = float(value["duration_s"]) or SIMULATED_LOOP_S
         if not float(value["duration_s"]):
             self.loop = True
@@ -209,7 +216,7 @@ class ReplayNode(Node):
 
 def main(args: Sequence[str] | None = None) -> int:
     """Entry point of ``replay_node`` (accepts ``--ros-args``); 1 when the bag cannot be read."""
-    rclpy.init(args=args)
+    rclpy.init(args=None if args is None else list(args))
     try:
         node = ReplayNode()
     except DataError as exc:

@@ -43,6 +43,7 @@ def diagnoser():
     made.close()
 
 
+@pytest.mark.slow
 def test_job_runs_in_the_background_and_reports_once(diagnoser):
     data = simulate_pair("multisine", noise_percent=1, duration=4, seed=1)
     assert not diagnoser.busy and diagnoser.latest is None

@@ -8,7 +8,17 @@ import pytest
 from tcomp_core.cli import build_parser, main
 from tcomp_core.io import read_record
 
-VERBS = ["simulate", "estimate", "reconstruct", "track", "sweep", "study"]
+VERBS = [
+    "simulate",
+    "estimate",
+    "reconstruct",
+    "sweep",
+    "study",
+    "diagnose",
+    "fit",
+    "track",
+    "process",
+]
 
 
 @pytest.mark.parametrize("verb", VERBS)
@@ -205,6 +215,7 @@ def test_console_script_entry_point_runs():
     assert completed.stdout.startswith("tcomp ")
 
 
+@pytest.mark.slow
 def test_core_never_imports_rclpy():
     code = (
         "import sys, tcomp_core, tcomp_core.cli, tcomp_core.io, tcomp_core.study, "
@@ -212,3 +223,48 @@ def test_core_never_imports_rclpy():
         "sys.exit(1 if 'rclpy' in sys.modules else 0)"
     )
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_process_defaults_are_those_of_the_configs(tmp_path):
+    from tcomp_core.cli.process import process_config
+    from tcomp_core.process import ProcessConfig
+
+    args = build_parser().parse_args(["process", "in_bag", "-o", str(tmp_path / "out")])
+    assert process_config(args) == ProcessConfig()
+
+
+def test_effect_registry_holds_every_effect_name_in_order():
+    from tcomp_core.choices import EFFECT_NAMES
+    from tcomp_core.effects import EFFECTS
+
+    assert tuple(EFFECTS) == EFFECT_NAMES
+    assert all(EFFECTS[name].name == name for name in EFFECT_NAMES)
+
+
+def test_fit_and_diagnose_offer_exactly_the_effect_names(capsys):
+    from tcomp_core.choices import EFFECT_NAMES
+
+    for verb in ("diagnose", "fit"):
+        with pytest.raises(SystemExit):
+            main([verb, "--help"])
+        help_text = " ".join(capsys.readouterr().out.split())
+        assert ", ".join(EFFECT_NAMES) in help_text
+
+
+def test_library_warnings_print_as_one_line_and_others_pass_through(monkeypatch, capsys):
+    import warnings
+
+    from tcomp_core.cli import estimate
+    from tcomp_core.errors import TcompWarning
+
+    def run(args):
+        warnings.warn("input.mcap: cut off at byte 1234", TcompWarning, stacklevel=1)
+        warnings.warn("input.mcap: cut off at byte 1234", TcompWarning, stacklevel=1)
+        warnings.warn("not ours", UserWarning, stacklevel=1)
+        return 0
+
+    monkeypatch.setattr(estimate, "run", run)
+    with pytest.warns(UserWarning, match="not ours"):
+        assert main(["estimate", "input.mcap"]) == 0
+    line = "tcomp estimate: warning: input.mcap: cut off at byte 1234\n"
+    assert capsys.readouterr().err == 2 * line

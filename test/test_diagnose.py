@@ -71,6 +71,7 @@ def _bare_record(effect, kind, *, taus, dt, duration, noise, seed, params):
     return record, sim
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("effect", "kind", "taus", "noise", "seed"), CASES)
 def test_diagnose_names_the_hidden_effect_and_the_error_falls(effect, kind, taus, noise, seed):
     record, sim = _record(effect, kind, taus, noise, seed)
@@ -85,6 +86,7 @@ def test_diagnose_names_the_hidden_effect_and_the_error_falls(effect, kind, taus
     assert found.final.effects == (effect,)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("kind", "taus", "noise", "seed"), CLEAN)
 def test_diagnose_raises_no_false_alarm_without_an_effect(kind, taus, noise, seed):
     record, sim = _record(None, kind, taus, noise, seed)
@@ -99,6 +101,7 @@ def test_diagnose_raises_no_false_alarm_without_an_effect(kind, taus, noise, see
     assert not any(suspect.significant for suspect in found.suspects)
 
 
+@pytest.mark.slow
 def test_a_5_khz_record_is_decimated_and_diagnosed():
     sim = simulate_effect(
         "conduction",
@@ -118,6 +121,7 @@ def test_a_5_khz_record_is_decimated_and_diagnosed():
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
 
 
+@pytest.mark.slow
 def test_conduction_is_found_in_a_window_that_does_not_start_at_rest():
     # Cut from a running record: the slow modes start charged (fitted as mode1, mode2).
     sim = simulate_effect("conduction", "multisine", duration=20.0, noise_percent=1.0, seed=41)
@@ -136,6 +140,7 @@ def test_conduction_is_found_in_a_window_that_does_not_start_at_rest():
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
 
 
+@pytest.mark.slow
 def test_the_staircase_adds_a_second_effect_when_two_are_hidden():
     sim = simulate_effect("delay", "multisine", duration=10.0, noise_percent=1.0, seed=21)
     # A calibration error on top of the delay: tc2 reads 3 % high and 4 degC low.
@@ -151,6 +156,7 @@ def test_the_staircase_adds_a_second_effect_when_two_are_hidden():
     assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
 
 
+@pytest.mark.slow
 def test_fit_effects_scores_each_step_in_the_order_given():
     record, _ = _record("radiation", "multisine", PAPER, 1.0, 30)
     fitted = fit_effects(record, ["radiation"])
@@ -160,6 +166,7 @@ def test_fit_effects_scores_each_step_in_the_order_given():
         fit_effects(record, ["smoke"])
 
 
+@pytest.mark.slow
 def test_diagnosis_json_holds_the_documented_keys():
     record, _ = _record("calibration", "multisine", PAPER, 1.0, 31)
     document = json.loads(json.dumps(diagnosis_to_dict(diagnose(record, max_effects=1))))
@@ -171,6 +178,7 @@ def test_diagnosis_json_holds_the_documented_keys():
     assert document["where"]["findings"]
 
 
+@pytest.mark.slow
 def test_cli_diagnose_writes_json_and_report(tmp_path, capsys):
     record, _ = _record("delay", "multisine", PAPER, 1.0, 32)
     data = tmp_path / "delay.csv"
@@ -207,6 +215,7 @@ def test_cli_fit_refuses_an_unknown_effect(tmp_path, capsys):
     assert "unknown effect 'smoke'" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_an_effect_is_judged_on_the_blocks_both_models_score():
     # The base model fits this record badly (a 6 degC offset) with a long τ2, so its start-up
     # transient covers the first validation block, which the calibration refit does score.
@@ -228,6 +237,7 @@ def test_an_effect_is_judged_on_the_blocks_both_models_score():
     assert found.base.error_pct >= 2.0 * found.final.error_pct
 
 
+@pytest.mark.slow
 def test_a_noisy_fast_record_is_fitted_below_the_noise_it_amplifies():
     # At 2 kHz and K = 2 % the inverse models amplify the noise above the signals' band ~20x;
     # the fits see the readings low-passed above both bands, which took this delay from
@@ -250,6 +260,7 @@ def test_a_noisy_fast_record_is_fitted_below_the_noise_it_amplifies():
     assert found.final.error_pct < 0.5
 
 
+@pytest.mark.slow
 def test_a_fast_strong_velocity_change_is_found():
     # The flow speed swings ±48 % every 3.1 s (τ by a factor 0.74..1.67): the smoothness
     # penalty of log s(t) used to hold the spline flat, and the tracked-τ start seeds it.

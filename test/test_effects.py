@@ -102,6 +102,7 @@ TRUE_PARAMS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", list(TRUE_PARAMS))
 def test_fit_recovers_the_parameters_of_its_own_model(effect, rng):
     time = np.arange(6000) * DT

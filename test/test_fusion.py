@@ -54,6 +54,7 @@ def oracle_error(pair):
     return min(postfilter_error(pair, bandwidth) for bandwidth in ORACLE_BANDWIDTHS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ramp", "multisine"])
 def test_smoother_beats_the_paper_postfilter_by_30_percent(kind):
     for seed in SEEDS:
@@ -61,12 +62,14 @@ def test_smoother_beats_the_paper_postfilter_by_30_percent(kind):
         assert error(pair, fused(kind, seed).gas) <= 0.7 * postfilter_error(pair, 50.0), seed
 
 
+@pytest.mark.slow
 def test_smoother_no_worse_than_the_paper_postfilter_on_a_sinusoid():
     for seed in SEEDS:
         pair = paper_record("sinusoid", seed)
         assert error(pair, fused("sinusoid", seed).gas) <= postfilter_error(pair, 50.0), seed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "factor"), [("ramp", 1.0), ("sinusoid", 1.0), ("multisine", 1.4)]
 )
@@ -77,6 +80,7 @@ def test_smoother_against_the_hindsight_oracle(kind, factor):
         assert error(pair, fused(kind, seed).gas) <= factor * oracle_error(pair), seed
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "model"),
     [("ramp", "random-walk"), ("multisine", "band-limited"), ("sinusoid", "periodic")],
@@ -89,6 +93,7 @@ def test_likelihood_picks_the_signal_model(kind, model):
         assert result.log_likelihood == pytest.approx(max(result.candidates.values()), abs=5.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ramp", "multisine"])
 def test_smoother_std_is_calibrated(kind):
     inside = []
@@ -98,6 +103,7 @@ def test_smoother_std_is_calibrated(kind):
     assert 0.90 <= np.mean(inside) <= 0.995
 
 
+@pytest.mark.slow
 def test_smoother_std_is_calibrated_on_a_sinusoid():
     # The error of a near-deterministic model is three numbers per record (level, amplitude,
     # phase): pooled over records, the standardised error has unit rms.
@@ -109,6 +115,7 @@ def test_smoother_std_is_calibrated_on_a_sinusoid():
     assert 0.5 <= np.sqrt(np.mean(np.square(standardised))) <= 2.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ramp", "multisine", "sinusoid"])
 def test_noise_free_data_are_tracked_closely(kind):
     # 4 s: in shorter records the spectral noise estimate sees the ramp's harmonics as noise.
@@ -201,6 +208,7 @@ def causal_case():
     return pair, model
 
 
+@pytest.mark.slow
 def test_causal_output_depends_only_on_past_samples():
     pair, model = causal_case()
     reference = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model=model, causal=True)

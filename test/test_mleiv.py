@@ -93,6 +93,7 @@ def monte_carlo(kind):
     return ml, gtls, errors, covered
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sinusoid", "ramp"])
 def test_spread_well_below_beta_gtls(kind):
     ml, gtls, _, _ = monte_carlo(kind)
@@ -144,6 +145,7 @@ def unequal_noise():
     return ml, gtls, phis
 
 
+@pytest.mark.slow
 def test_phi_from_data_removes_the_bias():
     ml, gtls, phis = unequal_noise()
     truth = np.array([0.0238, 0.1168])

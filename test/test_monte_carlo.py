@@ -16,6 +16,8 @@ from tcomp_core.estimators import DIFFERENCE_EQUATION_METHODS
 from tcomp_core.metrics import tau_error_percent
 from tcomp_core.simulate import PAPER_DT, PAPER_DURATION, PAPER_TAU1, PAPER_TAU2, simulate_pair
 
+pytestmark = pytest.mark.slow
+
 RUNS = 30
 SIGNAL_SEEDS = {"sinusoid": 100_000, "ramp": 200_000}
 

@@ -1,4 +1,4 @@
-"""The online compensator engine: first output, backlog, gaps."""
+"""The online engine: first output, backlog, gaps, reconstructors, health rules, schedule."""
 
 from __future__ import annotations
 
@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from tcomp_core.metrics import reconstruction_error_percent
-from tcomp_core.online import FIRST_ESTIMATE_ROWS, OnlineCompensator, OnlineConfig
+from tcomp_core.online import (
+    FIRST_ESTIMATE_ROWS,
+    Engine,
+    Level,
+    OnlineCompensator,
+    OnlineConfig,
+    ScheduledEngine,
+)
+from tcomp_core.online.health import LIVE_ONLY_KEYS, NO_DIAGNOSIS
 from tcomp_core.reconstruct import reconstruct
 from tcomp_core.tracking import varying_lag_response
 
@@ -16,7 +24,7 @@ def _feed(engine, pair, batch=50):
     out_stamps, out_gas = [], []
     for start in range(0, stamps.size, batch):
         part = slice(start, start + batch)
-        s, g = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+        s, g, _ = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
         out_stamps.append(s)
         out_gas.append(g)
     return stamps, np.concatenate(out_stamps), np.concatenate(out_gas)
@@ -41,9 +49,9 @@ def test_the_first_estimate_comes_after_first_estimate_rows(pair_factory):
     engine = OnlineCompensator(OnlineConfig(window_s=1.0))
     stamps = np.round(pair.time * 1e9).astype(np.int64)
     n = FIRST_ESTIMATE_ROWS - 10
-    out, _ = engine.add_pairs(stamps[:n], pair.tc1[:n], pair.tc2[:n])
+    out, _, _ = engine.add_pairs(stamps[:n], pair.tc1[:n], pair.tc2[:n])
     assert out.size == 0 and engine.tau is None
-    out, _ = engine.add_pairs(stamps[n : n + 40], pair.tc1[n : n + 40], pair.tc2[n : n + 40])
+    out, _, _ = engine.add_pairs(stamps[n : n + 40], pair.tc1[n : n + 40], pair.tc2[n : n + 40])
     assert engine.tau is not None
     assert out.size == n + 40 - 1
 
@@ -55,7 +63,7 @@ def test_the_backlog_keeps_at_most_one_window(pair_factory):
     engine = OnlineCompensator(OnlineConfig(window_s=1.0))
     for start in range(0, n, 100):
         part = slice(start, start + 100)
-        out, _ = engine.add_pairs(stamps[part], np.full(100, 50.0), np.full(100, 50.0))
+        out, _, _ = engine.add_pairs(stamps[part], np.full(100, 50.0), np.full(100, 50.0))
         assert out.size == 0
     assert engine.tau is None
     held = engine._backlog_rows
@@ -77,10 +85,10 @@ def _feed_and_estimate(engine, pair, batch=100, every=5):
     out_stamps, out_gas, out_variance = [], [], []
     for number, start in enumerate(range(0, stamps.size, batch)):
         part = slice(start, start + batch)
-        s, g = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+        s, g, v = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
         out_stamps.append(s)
         out_gas.append(g)
-        out_variance.append(engine.last_variance)
+        out_variance.append(v)
         if number % every == 0:
             engine.update_estimate()
     return (
@@ -97,6 +105,7 @@ def _second_half_error(pair, stamps, out_stamps, gas):
     return reconstruction_error_percent(pair.gas[index[late]], gas[late])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "signal_model", "most"),
     [
@@ -136,13 +145,14 @@ def _feed_kept(engine, pair, keep):
     out_stamps, gas = [], []
     for start in range(0, stamps.size, 100):
         part = np.flatnonzero(keep[start : start + 100]) + start
-        s, g = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+        s, g, _ = engine.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
         out_stamps.append(s)
         gas.append(g)
         engine.update_estimate()
     return stamps, np.concatenate(out_stamps), np.concatenate(gas)
 
 
+@pytest.mark.slow
 def test_kalman_filter_restarts_after_a_gap_and_loses_no_sample(pair_factory):
     pair = pair_factory("multisine", noise_percent=1.0, seed=4, duration=6.0)
     everything = np.ones(pair.time.size, dtype=bool)
@@ -230,3 +240,91 @@ def test_stamps_of_the_first_pairs_keep_every_nanosecond(pair_factory):
         for k in range(0, stamps.size, 10)
     ]
     np.testing.assert_array_equal(np.concatenate(out), stamps[:-1])
+
+
+# -- health --------------------------------------------------------------------------------------
+def _engine_with(pair, seconds, update_period_s=0.5, silence_timeout_s=1.0):
+    """An engine fed ``seconds`` of the pair in 0.1 s drains (now = newest stamp, s)."""
+    engine = Engine(
+        OnlineConfig(), update_period_s=update_period_s, silence_timeout_s=silence_timeout_s
+    )
+    stamps = np.round(pair.time * 1e9).astype(np.int64)
+    step = round(0.1 / pair.dt)
+    for start in range(0, round(seconds / pair.dt), step):
+        part = slice(start, start + step)
+        now = stamps[part][-1] * 1e-9
+        engine.add_samples(0, stamps[part], pair.tc1[part], now)
+        engine.add_samples(1, stamps[part], pair.tc2[part], now)
+        engine.reconstruct()
+    return engine, now
+
+
+def test_health_is_stale_before_an_estimate_then_ok(pair_factory):
+    pair = pair_factory()
+    engine, now = _engine_with(pair, 1.0, silence_timeout_s=60.0)
+    health = engine.report(now)
+    assert health.level == Level.STALE and health.message.startswith("no estimate yet")
+    engine.update_estimate(now)
+    health = engine.report(now)
+    assert (health.level, health.message) == (Level.OK, "estimating")
+    assert health.values["matched"] == health.values["received_tc1"] == str(round(1.0 / pair.dt))
+    # The estimate ages on the caller's clock, nothing else: 3 updates and a report later, stale.
+    assert engine.report(now + 2.4).level == Level.OK
+    assert engine.report(now + 2.6).level == Level.STALE
+
+
+def test_health_errors_name_the_silent_or_invalid_sensor(pair_factory):
+    pair = pair_factory()
+    engine, now = _engine_with(pair, 1.0)
+    engine.update_estimate(now)
+    silent = engine.report(now + 1.5)
+    assert silent.level == Level.ERROR
+    assert silent.message == "tc1 silent for 1.5 s; tc2 silent for 1.5 s"
+    engine.add_samples(0, [10**18], [float("nan")], now + 1.6)
+    engine.add_samples(1, [10**18], [20.0], now + 1.6)
+    invalid = engine.report(now + 1.7)
+    assert invalid.level == Level.ERROR and "tc1 sent 1 non-finite value(s)" in invalid.message
+    assert invalid.values["invalid_tc1"] == "1"
+    assert engine.report(now + 1.8).level == Level.OK  # the report period moved on
+
+
+def test_health_warns_on_a_refused_estimate():
+    engine = Engine(OnlineConfig())
+    stamps = 10**18 + np.arange(600, dtype=np.int64) * 1_000_000
+    flat = np.full(600, 50.0)  # no excitation: nothing to estimate
+    engine.add_samples(0, stamps, flat, 1.0)
+    engine.add_samples(1, stamps, flat, 1.0)
+    engine.reconstruct()
+    status = engine.update_estimate(1.0)
+    assert not status.accepted
+    health = engine.report(1.0)
+    assert health.level == Level.STALE and status.reason in health.message
+    keys = list(health.values)
+    assert keys[-len(NO_DIAGNOSIS) - len(LIVE_ONLY_KEYS) :] == [*NO_DIAGNOSIS, *LIVE_ONLY_KEYS]
+    assert all(health.values[key] == "nan" for key in LIVE_ONLY_KEYS)
+
+
+# -- schedule ------------------------------------------------------------------------------------
+def test_schedule_does_not_depend_on_the_reading_chunks(pair_factory):
+    pair = pair_factory()
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+
+    def run(chunk):
+        scheduled = ScheduledEngine(Engine(OnlineConfig()), update_period_s=0.5, batch_s=0.1)
+        steps = []
+        for start in range(0, stamps.size, chunk):
+            part = slice(start, start + chunk)
+            steps += scheduled.feed(
+                {0: (stamps[part], pair.tc1[part]), 1: (stamps[part], pair.tc2[part])}
+            )
+        steps += scheduled.finish()
+        gas = np.concatenate([step.gas.gas for step in steps])
+        reports = [step.health.values for step in steps if step.health is not None]
+        return gas, reports
+
+    gas, reports = run(977)
+    for chunk in (64, 5000, stamps.size):
+        other_gas, other_reports = run(chunk)
+        np.testing.assert_array_equal(other_gas, gas)
+        assert other_reports == reports
+    assert len(reports) == int(pair.time[-1] - pair.time[0])

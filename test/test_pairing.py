@@ -1,13 +1,17 @@
-"""PairMatcher: exact and approximate stamp matching of two inputs, ordering and accounting."""
+"""PairMatcher: exact and approximate stamp matching of two inputs, ordering and accounting.
+
+One sample at a time (:meth:`add`) and vectorised in batches (:meth:`add_batch`), which must
+agree on pairs, counters and queues."""
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
 import pytest
 
-from tcomp_ros.pairing import MatchCounters, PairMatcher
+from tcomp_core.online.pairing import PairCounters, PairMatcher, Pairs
 
 T0 = 1_700_000_000 * 1_000_000_000  # a realistic epoch stamp, ns
 MS = 1_000_000  # ns
@@ -22,13 +26,14 @@ class ReferenceMatcher:
         self.queues = [{}, {}]
         self.last = [None, None]
         self.received = [0, 0]
-        self.matched = self.unmatched = self.duplicates = self.late = 0
+        self.unmatched = [0, 0]
+        self.matched = self.duplicates = self.out_of_order = 0
 
     def add(self, index, stamp, value):
         self.received[index] += 1
         own, other = self.queues[index], self.queues[1 - index]
         if self.last[index] is not None and stamp <= self.last[index]:
-            self.late += 1
+            self.out_of_order += 1
             return []
         if stamp in own:
             self.duplicates += 1
@@ -39,17 +44,17 @@ class ReferenceMatcher:
             partner = min(candidates, key=lambda s: (abs(s - stamp), s))
             own_value, other_value = own.pop(stamp), other.pop(partner)
             self.last[index], self.last[1 - index] = stamp, partner
-            for queue, limit in ((own, stamp), (other, partner)):
+            for side, queue, limit in ((index, own, stamp), (1 - index, other, partner)):
                 for s in [s for s in queue if s < limit]:
                     del queue[s]
-                    self.unmatched += 1
+                    self.unmatched[side] += 1
             self.matched += 1
             if index == 0:
                 return [(stamp, own_value, other_value)]
             return [(partner, other_value, own_value)]
         if len(own) > self.queue_size:
             del own[min(own)]
-            self.unmatched += 1
+            self.unmatched[index] += 1
         return []
 
     def counters(self):
@@ -57,9 +62,12 @@ class ReferenceMatcher:
             "received_tc1": self.received[0],
             "received_tc2": self.received[1],
             "matched": self.matched,
-            "unmatched": self.unmatched,
+            "unmatched_tc1": self.unmatched[0],
+            "unmatched_tc2": self.unmatched[1],
+            "out_of_order": self.out_of_order,
             "duplicates": self.duplicates,
-            "late": self.late,
+            "invalid_tc1": 0,
+            "invalid_tc2": 0,
         }
 
 
@@ -74,7 +82,8 @@ def feed(matcher, events):
 def check_identity(matcher):
     c = matcher.counters
     total = sum(c.received)
-    assert total == 2 * c.matched + c.unmatched + c.duplicates + c.late + sum(matcher.pending())
+    dropped = sum(c.unmatched) + c.duplicates + c.out_of_order + sum(c.invalid)
+    assert total == 2 * c.matched + dropped + sum(matcher.pending())
 
 
 def stream(index, stamps):
@@ -123,9 +132,12 @@ def test_exact_stamps_pair_in_any_interleaving(order):
         "received_tc1": n,
         "received_tc2": n,
         "matched": n,
-        "unmatched": 0,
+        "unmatched_tc1": 0,
+        "unmatched_tc2": 0,
+        "out_of_order": 0,
         "duplicates": 0,
-        "late": 0,
+        "invalid_tc1": 0,
+        "invalid_tc2": 0,
     }
     assert matcher.pending() == (0, 0)
 
@@ -137,7 +149,7 @@ def test_zero_slop_does_not_pair_stamps_one_ns_apart():
     assert matcher.add(1, T0, 3.0) == [(T0, 1.0, 3.0)]
     # the tc2 sample at T0 + 1 is newer than the pair: still queued, not evicted
     assert matcher.pending() == (0, 1)
-    assert matcher.counters.unmatched == 0
+    assert matcher.counters.total_unmatched == 0
 
 
 # -- approximate matching -----------------------------------------------------------------------
@@ -154,7 +166,7 @@ def test_slop_pairs_each_tc2_with_its_nearest_tc1_despite_jitter():
     matcher = PairMatcher(slop_ns=45 * period // 100, queue_size=n)
     pairs = feed(matcher, events)
     assert pairs == [(int(tc1_stamps[k]), float(k), float(1000 + k)) for k in range(n)]
-    assert matcher.counters.unmatched == 0
+    assert matcher.counters.total_unmatched == 0
     assert matcher.pending() == (0, 0)
 
 
@@ -162,7 +174,7 @@ def test_closest_candidate_wins_and_ties_go_to_the_older_stamp():
     matcher = PairMatcher(slop_ns=100)
     feed(matcher, [(0, 1000, 1.0), (0, 1100, 2.0), (0, 1200, 3.0)])
     assert matcher.add(1, 1140, 9.0) == [(1100, 2.0, 9.0)]  # 1100 is 40 away, 1200 is 60
-    assert matcher.counters.unmatched == 1  # 1000 is older than the pair: evicted
+    assert matcher.counters.total_unmatched == 1  # 1000 is older than the pair: evicted
     assert matcher.pending() == (1, 0)
 
     tie = PairMatcher(slop_ns=100)
@@ -197,8 +209,8 @@ def test_5khz_against_1khz_pairs_only_the_1khz_samples():
     c = matcher.counters
     assert c.matched == 1000
     assert matcher.pending() == (4, 0)  # the four tc1 samples after the last pair
-    assert c.unmatched == 5000 - 1000 - 4
-    assert c.late == c.duplicates == 0
+    assert c.total_unmatched == 5000 - 1000 - 4
+    assert c.out_of_order == c.duplicates == 0
     check_identity(matcher)
 
 
@@ -217,20 +229,20 @@ def test_out_of_order_within_the_queue_is_matched_in_increasing_order(shuffled):
     matcher = PairMatcher(slop_ns=0, queue_size=block)
     pairs = feed(matcher, events)
     assert pairs == [(int(s), float(k), float(1000 + k)) for k, s in enumerate(stamps)]
-    assert matcher.counters.unmatched == matcher.counters.late == 0
+    assert matcher.counters.total_unmatched == matcher.counters.out_of_order == 0
 
 
 def test_late_samples_are_counted_and_dropped():
     matcher = PairMatcher(slop_ns=0)
     feed(matcher, [(0, 10, 1.0), (0, 20, 2.0), (0, 30, 3.0)])
     assert matcher.add(1, 20, 9.0) == [(20, 2.0, 9.0)]
-    assert matcher.counters.unmatched == 1  # tc1 at 10 can no longer pair in order
+    assert matcher.counters.total_unmatched == 1  # tc1 at 10 can no longer pair in order
     assert matcher.add(1, 10, 8.0) == []  # older than tc2's last pair
     assert matcher.add(1, 20, 8.0) == []  # equal to it
     assert matcher.add(0, 20, 8.0) == []  # tc1 equal to its last pair
     assert matcher.add(0, 15, 8.0) == []
     c = matcher.counters
-    assert c.late == 4
+    assert c.out_of_order == 4
     assert matcher.pending() == (1, 0)
     assert matcher.add(1, 30, 7.0) == [(30, 3.0, 7.0)]  # later samples still pair
     check_identity(matcher)
@@ -242,7 +254,7 @@ def test_approximate_pairs_keep_both_stamps_increasing():
     matcher = PairMatcher(slop_ns=100)
     assert feed(matcher, [(0, 1000, 1.0), (1, 1050, 2.0)]) == [(1000, 1.0, 2.0)]
     assert matcher.add(1, 1040, 3.0) == []
-    assert matcher.counters.late == 1
+    assert matcher.counters.out_of_order == 1
     assert matcher.add(0, 1080, 4.0) == []  # its only tc2 candidate was used: queued
     assert matcher.pending() == (1, 0)
 
@@ -278,12 +290,14 @@ def test_missing_stamps_accounting_adds_up():
     assert c.received == [len(tc1), len(tc2)]
     assert c.matched == len(both)
     pending = matcher.pending()
-    assert 2 * c.matched + c.unmatched == sum(c.received) - sum(pending) - c.late - c.duplicates
+    assert 2 * c.matched + sum(c.unmatched) == (
+        sum(c.received) - sum(pending) - c.out_of_order - c.duplicates
+    )
     # every sample without a partner before the last pair was evicted exactly once
     last = both[-1]
     lonely = (stamps <= last) & (keep[0] ^ keep[1])
-    assert c.unmatched == int(lonely.sum())
-    assert c.late == c.duplicates == 0
+    assert c.total_unmatched == int(lonely.sum())
+    assert c.out_of_order == c.duplicates == 0
 
 
 def test_queue_overflow_when_one_input_is_silent():
@@ -291,7 +305,7 @@ def test_queue_overflow_when_one_input_is_silent():
     pairs = matcher.add_many(0, [T0 + k for k in range(25)], [float(k) for k in range(25)])
     assert pairs == []
     assert matcher.pending() == (10, 0)
-    assert matcher.counters.unmatched == 15
+    assert matcher.counters.total_unmatched == 15
     check_identity(matcher)
     # the newest ten were kept
     pairs = matcher.add_many(1, [T0 + k for k in range(15, 25)], [-1.0] * 10)
@@ -310,7 +324,7 @@ def test_silent_input_that_comes_back_resumes_matching():
     pairs = feed(matcher, events)
     expected = [k for k in range(100) if not 30 <= k < 70]
     assert pairs == [(stamps[k], float(k), float(-k)) for k in expected]
-    assert matcher.counters.unmatched == 40  # by overflow, then by the pair at 70
+    assert matcher.counters.total_unmatched == 40  # by overflow, then by the pair at 70
     assert matcher.pending() == (0, 0)
     check_identity(matcher)
 
@@ -337,16 +351,19 @@ def test_counters_as_dict_pending_and_reset():
         "received_tc1": 4,
         "received_tc2": 2,
         "matched": 1,
-        "unmatched": 1,
+        "unmatched_tc1": 1,
+        "unmatched_tc2": 0,
+        "out_of_order": 1,
         "duplicates": 1,
-        "late": 1,
+        "invalid_tc1": 0,
+        "invalid_tc2": 0,
     }
     assert matcher.pending() == (1, 0)
     counters = matcher.counters
     matcher.reset()
     assert matcher.pending() == (0, 0)
     assert counters is matcher.counters  # zeroed in place
-    assert matcher.counters == MatchCounters()
+    assert matcher.counters == PairCounters()
     assert matcher.add(1, 1, 7.0) == []  # no longer late after a reset
     assert matcher.add(0, 1, 8.0) == [(1, 8.0, 7.0)]
 
@@ -375,7 +392,7 @@ def test_invalid_calls_are_refused():
         matcher.add_many(0, [1, 2, 3], [1.0, 2.0])
     with pytest.raises(ValueError, match="float64"):
         matcher.add_many(0, np.array([1.0, 2.0]), [1.0, 2.0])
-    assert matcher.counters == MatchCounters()
+    assert matcher.counters == PairCounters()
 
 
 # -- property-style ------------------------------------------------------------------------------
@@ -432,3 +449,106 @@ def test_random_scenarios_keep_the_invariants(seed):
         previous = (stamp1, stamp2)
     assert matcher.counters.as_dict() == reference.counters()
     assert matcher.pending() == (len(reference.queues[0]), len(reference.queues[1]))
+
+
+# -- the batch path ------------------------------------------------------------------------------
+def bursts(events):
+    """Runs of consecutive events of one input: (index, stamps, values)."""
+    out = []
+    for index, stamp, value in events:
+        if out and out[-1][0] == index:
+            out[-1][1].append(stamp)
+            out[-1][2].append(value)
+        else:
+            out.append((index, [stamp], [value]))
+    return out
+
+
+def exact_in_order_scenario(rng):
+    """Exact stamps on a common grid, each input missing some, now and then a NaN or a late one."""
+    n = int(rng.integers(1, 3000))
+    grid = T0 + np.cumsum(rng.integers(1, 4, n)) * MS
+    streams = []
+    for index in (0, 1):
+        stamps = grid[rng.random(n) >= rng.uniform(0, 0.2)]
+        values = rng.normal(size=stamps.size) + 1000 * index
+        values[rng.random(stamps.size) < rng.uniform(0, 0.01)] = np.nan
+        events = [(index, int(s), float(v)) for s, v in zip(stamps, values, strict=True)]
+        if events and rng.random() < 0.3:  # a late repeat of an old stamp
+            k = int(rng.integers(0, len(events)))
+            events.append((index, events[k][1], 5.0))
+        streams.append(events)
+    return merge_bursts(*streams, rng, int(rng.integers(1, 400)))
+
+
+def check_batch_equals_one_by_one(events, slop, queue_size):
+    one = PairMatcher(slop_ns=slop, queue_size=queue_size)
+    batched = PairMatcher(slop_ns=slop, queue_size=queue_size)
+    expected = feed(one, events)
+    parts = [
+        batched.add_batch(index, np.array(stamps, np.int64), np.array(values))
+        for index, stamps, values in bursts(events)
+    ]
+    got = Pairs.concatenate(parts)
+    assert (
+        list(zip(got.stamps_ns.tolist(), got.tc1.tolist(), got.tc2.tolist(), strict=True))
+        == expected
+    )
+    assert batched.counters == one.counters  # every counter, and the first dropped of each
+    assert batched.pending() == one.pending()
+    assert batched._stamps == one._stamps and batched._last == one._last
+
+
+@pytest.mark.parametrize("seed", range(150))
+def test_batches_of_exact_stamps_in_order_equal_one_by_one(seed):
+    rng = np.random.default_rng(1000 + seed)
+    queue_size = int(rng.choice([5, 50, 2000]))
+    check_batch_equals_one_by_one(exact_in_order_scenario(rng), 0, queue_size)
+
+
+@pytest.mark.parametrize("seed", range(150))
+def test_batches_of_any_scenario_equal_one_by_one(seed):
+    rng = np.random.default_rng(seed)
+    events, slop, queue_size = random_scenario(rng)
+    values = rng.normal(size=len(events))
+    values[rng.random(len(events)) < 0.02] = np.inf
+    events = [(i, s, float(v)) for (i, s), v in zip(events, values, strict=True)]
+    check_batch_equals_one_by_one(events, slop, queue_size)
+
+
+def test_in_order_exact_batches_take_the_vectorised_path(monkeypatch):
+    matcher = PairMatcher(slop_ns=0, queue_size=5000)
+
+    def refuse(*_):
+        raise AssertionError("sample-by-sample path taken")
+
+    monkeypatch.setattr(matcher, "_offer", refuse)
+    stamps = T0 + np.arange(4000, dtype=np.int64) * MS
+    values = np.arange(4000.0)
+    keep = np.ones(4000, bool)
+    keep[[10, 11, 3000]] = False  # tc2 misses three samples
+    assert len(matcher.add_batch(0, stamps[:2000], values[:2000])) == 0
+    first = matcher.add_batch(1, stamps[keep][:1998], values[keep][:1998] + 0.5)
+    second = matcher.add_batch(0, stamps[2000:], values[2000:])
+    third = matcher.add_batch(1, stamps[keep][1998:], values[keep][1998:] + 0.5)
+    pairs = Pairs.concatenate([first, second, third])
+    assert np.array_equal(pairs.stamps_ns, stamps[keep])
+    assert np.array_equal(pairs.tc2, pairs.tc1 + 0.5)
+    c = matcher.counters
+    assert (c.matched, c.unmatched, c.first_dropped) == (
+        3997,
+        [3, 0],
+        {"unmatched_tc1": T0 + 10 * MS},
+    )
+
+
+def test_invalid_values_are_counted_per_input_and_never_paired():
+    matcher = PairMatcher()
+    assert matcher.add(0, 10, math.nan) == []
+    assert len(matcher.add_batch(0, np.array([20, 30]), np.array([1.0, -math.inf]))) == 0
+    assert len(matcher.add_batch(1, np.array([10, 20, 30]), np.array([1.0, 2.0, 3.0]))) == 1
+    c = matcher.counters
+    assert (c.invalid, c.last_invalid_ns, c.matched) == ([2, 0], [30, 0], 1)
+    assert c.first_dropped["invalid_tc1"] == 10
+    matcher.discard_pending()  # tc2 at 30 stays without a partner at the end
+    assert matcher.pending() == (0, 0) and c.unmatched == [0, 2]

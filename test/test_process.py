@@ -15,10 +15,18 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from sim_records import make_pair
 
-from tcomp_core.cli_process import add_process_command
+from tcomp_core.cli.process import add_parser as add_process_command
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError, TcompError
-from tcomp_core.io import DEFAULT_TOPICS, read_bag, write_bag, write_csv
+from tcomp_core.io import (
+    DEFAULT_TOPICS,
+    McapScan,
+    log_times,
+    payloads,
+    read_bag,
+    write_bag,
+    write_csv,
+)
 from tcomp_core.online import OnlineCompensator, OnlineConfig
 from tcomp_core.process import (
     ProcessConfig,
@@ -28,7 +36,6 @@ from tcomp_core.process import (
     process,
     process_many,
 )
-from tcomp_core.process.mcap_read import McapScan, log_times, payloads
 from tcomp_core.process.output import DIAGNOSIS_TOPIC, HISTORY_TOPIC, STATUS_NAME
 from tcomp_core.simulate import simulate_pair
 
@@ -178,10 +185,11 @@ def test_bag_output_opens_with_mcap_and_rosbags(tmp_path):
             "/tc2/temperature": 5000,
             "/tref/temperature": 5000,
             "/gas_temperature": result.gas,
-            HISTORY_TOPIC: result.estimates,
+            HISTORY_TOPIC: result.reports,
         },
     )
     assert result.estimates == 19  # every 0.5 s of a 10 s record, the last batch at 9.998 s
+    assert result.reports == 9  # every second of stamp time, as the node publishes
     with Reader(tmp_path / "out") as reader:
         history = [
             TYPESTORE.deserialize_cdr(raw, c.msgtype)
@@ -197,22 +205,69 @@ def test_bag_output_opens_with_mcap_and_rosbags(tmp_path):
     assert values["method"] == "beta-gtls" and int(values["window_samples"]) == 1000
 
 
+def _history(bag: Path) -> list[tuple[int, int, dict[str, str]]]:
+    """(header stamp ns, level, key-values) of each /diagnostics status of a bag."""
+    found = []
+    with Reader(bag) as reader:
+        wanted = [c for c in reader.connections if c.topic == HISTORY_TOPIC]
+        for connection, _, raw in reader.messages(wanted):
+            array = TYPESTORE.deserialize_cdr(raw, connection.msgtype)
+            status = array.status[0]
+            stamp = array.header.stamp.sec * 10**9 + array.header.stamp.nanosec
+            found.append((stamp, int(status.level), {kv.key: kv.value for kv in status.values}))
+    return found
+
+
+def test_the_tau_history_is_what_the_engine_said_at_each_stamp(tmp_path):
+    process(BAGS / "ramp_500hz", tmp_path / "out", FAST)
+    record = read_bag(BAGS / "ramp_500hz")
+    history = _history(tmp_path / "out")
+    assert len(history) == 9
+    window = round(FAST.online.window_s / record.dt)
+    for stamp, _, values in history:
+        by_then = int(np.searchsorted(record.stamps_ns, stamp, side="right"))
+        assert int(values["matched"]) == by_then  # every pair stamped up to then, no later one
+        assert int(values["received_tc1"]) == int(values["received_tc2"]) == by_then
+        assert int(values["window_samples"]) == min(by_then, window)
+        assert int(values["published"]) <= by_then
+    taus = [values["tau1_s"] for _, _, values in history]
+    assert len(set(taus)) >= len(taus) - 1  # τ moves with the window, report after report
+    windows = [int(values["window_samples"]) for _, _, values in history]
+    assert windows[0] < windows[-1] == window  # the window fills
+
+
 def _drive_directly(stamps, tc1, tc2, config: OnlineConfig, update_s: float, batch_s: float):
-    """The documented schedule, written out independently of ScheduledEngine."""
+    """The documented schedule, written out independently of ScheduledEngine.
+
+    Batches of ``batch_s``; each alone until τ is known, then together up to the next one that
+    calls for an update or a report (every second); every stamp has both samples here, so the
+    pairs are the samples and no queue overflows.
+    """
     compensator = OnlineCompensator(config)
     t0, batch_ns, update_ns = int(stamps[0]), round(batch_s * 1e9), round(update_s * 1e9)
+    report_ns = 10**9
     ids = (stamps - t0) // batch_ns
-    next_update = t0 + update_ns
+    next_update, next_report = t0 + update_ns, t0 + report_ns
     out_stamps, out_gas = [], []
-    for batch in np.unique(ids):
-        part = ids == batch
-        s, g = compensator.add_pairs(stamps[part], tc1[part], tc2[part])
+    pending = [ids == batch for batch in np.unique(ids)]
+    while pending:
+        end = 0
+        if compensator.tau is not None:
+            for k, part in enumerate(pending):
+                end, last = k, int(stamps[part][-1])
+                if last >= next_update or last >= next_report:
+                    break
+        part = np.logical_or.reduce(pending[: end + 1])
+        del pending[: end + 1]
+        s, g, _ = compensator.add_pairs(stamps[part], tc1[part], tc2[part])
         out_stamps.append(s)
         out_gas.append(g)
         last = int(stamps[part][-1])
         if last >= next_update:
             compensator.update_estimate()
             next_update = t0 + ((last - t0) // update_ns + 1) * update_ns
+        if last >= next_report:
+            next_report = t0 + ((last - t0) // report_ns + 1) * report_ns
     return np.concatenate(out_stamps), np.concatenate(out_gas)
 
 
@@ -287,9 +342,9 @@ def test_truncated_bag_is_processed_up_to_the_last_good_message(tmp_path):
     mcap.write_bytes(data[: int(0.55 * len(data))])
     result = process(bag, tmp_path / "out", FAST)
     assert 0 < result.pairs < 15000
-    warning = result.warnings[0]
-    assert "input truncated" in warning and "cut off" in warning
-    assert "/tc1/temperature" in warning and "the last good stamped 1700000001." in warning
+    truncated, where = result.warnings[:2]
+    assert "input truncated" in truncated and "cut off" in truncated
+    assert "/tc1/temperature" in where and "the last good stamped 1700000001." in where
     full = read_bag(BAGS / "rig_sine_5khz")
     # Every pair processed is a true pair of the full record, from its start.
     assert result.pairs > 9000  # two whole chunks and part of the cut one
@@ -309,6 +364,7 @@ def test_missing_topic_and_no_pairs_are_errors(tmp_path):
         process(tmp_path / "missing", tmp_path / "b", FAST)
 
 
+@pytest.mark.slow
 def test_diagnosis_verdict_topic(tmp_path):
     bag = _sim_bag(tmp_path / "sim", seconds=6.0, rate=500.0)
     result = process(bag, tmp_path / "out", ProcessConfig(diagnose_samples=3000))
@@ -504,7 +560,7 @@ def test_copied_records_are_byte_identical_and_keep_the_input_channel_ids(tmp_pa
 
 
 def test_a_failing_write_ends_the_run_with_its_error_and_no_thread_left(tmp_path, monkeypatch):
-    from tcomp_core.process import mcap_write
+    from tcomp_core.io import mcap_write
 
     threads = {thread.name for thread in threading.enumerate()}
 

@@ -40,7 +40,9 @@ FIT_CUTOFF_PER_BAND_EDGE = 1.5
 def _initial_taus(data: PreparedData) -> dict[str, float]:
     """β-GTLS (φ = 1) on the pooled estimation blocks; a coarse grid if it fails."""
     blocks = data.blocks(held_out=False)
-    scatter = sum(beta_scatter(data.tc1[b], data.tc2[b]) for b in blocks)
+    scatter = np.zeros((3, 3))
+    for b in blocks:
+        scatter = scatter + beta_scatter(data.tc1[b], data.tc2[b])
     n = sum(b.stop - b.start for b in blocks)
     try:
         found = estimate_beta_from_scatter(scatter, data.dt, n, "beta-gtls", 1.0)
@@ -163,7 +165,7 @@ def _staircase(
         suspects = next_round(evaluator, model, fit, remaining)
         rounds.append(suspects)
         chosen = pick(suspects)
-        if chosen is None:
+        if chosen is None or chosen.fit is None:
             break
         fit = chosen.fit
         model = Model(fit.effects, fit.params)

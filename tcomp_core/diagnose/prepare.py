@@ -142,7 +142,7 @@ def prepare(record: Record) -> PreparedData:
             f"{record.source}: {n} samples at {1 / dt:.6g} Hz are too few to diagnose; "
             f"need at least {MIN_WORKING_SAMPLES}"
         )
-    time = np.arange(n) * dt
+    time = np.arange(n, dtype=np.float64) * dt
     length = block_length_s(n * dt, dt)
     starts = np.arange(0, n, max(1, round(length / dt)))
     if n - starts[-1] < 0.5 * length / dt:

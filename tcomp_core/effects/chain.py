@@ -33,6 +33,9 @@ from .base import KELVIN
 
 __all__ = ["SensorChain", "fractional_shift", "gas_from_reading", "reading_from_gas"]
 
+#: Numerator and denominator ``(b, a)`` of a digital filter, as :func:`scipy.signal.lfilter` takes.
+FilterCoefficients = tuple[NDArray[np.float64], NDArray[np.float64]]
+
 
 @dataclass(frozen=True, kw_only=True)
 class SensorChain:
@@ -75,7 +78,7 @@ class SensorChain:
             return np.full(n - 1, math.exp(-dt / tau))
         return np.exp(-dt / (tau * self.factor[:-1]))
 
-    def support_filters(self, dt: float) -> tuple[tuple, tuple] | None:
+    def support_filters(self, dt: float) -> tuple[FilterCoefficients, FilterCoefficients] | None:
         """Bilinear ``(b, a)`` of F and of F⁻¹ (conduction), or None."""
         if self.kappa == 0.0:
             return None
@@ -85,7 +88,12 @@ class SensorChain:
         return forward, inverse
 
 
-def _steady_filter(b, a, values: NDArray[np.float64], excess: float = 0.0) -> NDArray[np.float64]:
+def _steady_filter(
+    b: NDArray[np.float64],
+    a: NDArray[np.float64],
+    values: NDArray[np.float64],
+    excess: float = 0.0,
+) -> NDArray[np.float64]:
     """``lfilter`` started in the steady state of its first input, its output ``excess`` off.
 
     For a first-order section the state is the output's offset, so ``excess`` is added to the

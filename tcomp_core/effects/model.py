@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 from ..errors import EstimationError
 from .base import Effect, FitContext, ParamSpec
 from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
+from .registry import EFFECTS, check_effect_names
 
 __all__ = ["Model", "make_context"]
 
@@ -81,8 +82,6 @@ def make_context(
 
 def _effect(name: str) -> Effect:
     """A new instance of a checked effect name."""
-    from . import EFFECTS  # the registry imports this module
-
     return EFFECTS[name]()
 
 
@@ -93,7 +92,7 @@ class Model:
     Parameters
     ----------
     effects : sequence of str
-        Effect names (see :data:`tcomp_core.effects.EFFECT_NAMES`), in the order added.
+        Effect names (see :data:`tcomp_core.choices.EFFECT_NAMES`), in the order added.
     params : mapping of str to float
         Parameter values: ``tau1``, ``tau2`` (s) and the effects' own; empty before a fit.
     """
@@ -102,8 +101,6 @@ class Model:
     params: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from . import check_effect_names  # the registry imports this module
-
         names = check_effect_names(self.effects)
         object.__setattr__(self, "effects", names)
         object.__setattr__(self, "_instances", tuple(_effect(name) for name in names))

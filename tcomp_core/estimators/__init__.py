@@ -17,10 +17,10 @@ The first six are the paper's (:data:`PAPER_METHODS`).
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Literal, get_args
 
 from numpy.typing import ArrayLike
 
+from ..choices import METHODS, PAPER_METHODS, Method
 from ..filters import prefilter
 from ..validation import check_excitation, check_pair, check_sample_interval
 from .beta import beta_gtls, beta_ls, beta_noise_covariance, beta_tls, estimate_beta_from_scatter
@@ -49,11 +49,6 @@ __all__ = [
     "tdr_kee",
 ]
 
-PaperMethod = Literal["tdr-kee", "gamma-ls", "gamma-tls", "beta-ls", "beta-tls", "beta-gtls"]
-Method = Literal[PaperMethod, "ml-eiv"]
-METHODS: tuple[str, ...] = get_args(Method)
-#: The six estimators of Hung et al. (2005), in the paper's order.
-PAPER_METHODS: tuple[str, ...] = get_args(PaperMethod)
 #: The paper's five difference-equation estimators (all but TDR-Kee).
 DIFFERENCE_EQUATION_METHODS: tuple[str, ...] = PAPER_METHODS[1:]
 #: Estimators that take the noise variance ratio φ.
@@ -123,7 +118,7 @@ def estimate(
             f"{method} assumes equal noise variances"
         )
     measured = phi is None
-    if measured:
+    if phi is None:
         # Before the pre-filter, which would remove the band the noise is measured in.
         phi = phi_from_data(first, second, dt)
     if prefilter_hz is not None:

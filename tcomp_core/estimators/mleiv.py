@@ -290,7 +290,9 @@ def ml_eiv(
             f"ml-eiv: the best fit lies at the edge of the search range (τ = "
             f"{np.exp(fit.x[0]):.3g} s, {np.exp(fit.x[1]):.3g} s): no first-order pair fits"
         )
-    condition = _equilibrated_condition(fit.jac)
+    # A dense array: the "3-point" Jacobian without jac_sparsity (typed as a union).
+    jacobian = np.asarray(fit.jac, dtype=np.float64)
+    condition = _equilibrated_condition(jacobian)
     if not condition < MAX_CONDITION:
         raise NoExcitationError(
             f"ml-eiv: the time constants are not separately determined (condition "
@@ -299,7 +301,7 @@ def ml_eiv(
     tau = np.exp(fit.x)
     a1, a2 = np.exp(-dt / tau)
     params = {
-        **_interval_params(tau, _log_tau_covariance(fit.jac, fit.cost, problem.rows)),
+        **_interval_params(tau, _log_tau_covariance(jacobian, fit.cost, problem.rows)),
         "noise_sigma2": math.sqrt(2.0 * fit.cost / (problem.rows - 2)),
         "phi_estimated": 1.0 if measured else 0.0,
         "start_beta_gtls": 1.0 if from_beta else 0.0,

@@ -135,7 +135,9 @@ def accumulate_r_factor(
     """
     factor = np.zeros((0, width))
     for first, second in _overlapping_chunks(tc1, tc2, chunk_rows):
-        factor = np.linalg.qr(np.vstack((factor, rows_of(first, second))), mode="r")
+        # numpy 2.4 types every qr() as a QRResult; mode="r" returns the R factor alone.
+        stacked = np.vstack((factor, rows_of(first, second)))
+        factor = np.linalg.qr(stacked, mode="r")  # type: ignore[assignment]
     if factor.shape[0] < width:
         factor = np.vstack((factor, np.zeros((width - factor.shape[0], width))))
     return factor

@@ -2,15 +2,16 @@
 
 :func:`process` streams one record through the compensator's engine into a new rosbag2 MCAP bag
 or CSV file; :func:`process_many` runs many in worker processes. The bulk Temperature codec,
-the chunk reader and the bag writer beneath are usable on their own.
+the chunk reader and the bag writer beneath live in :mod:`tcomp_core.io` (re-exported here:
+``TemperatureBatch``, ``decode_payloads``, ``decode_rows``, ``encode``).
 """
 
 from __future__ import annotations
 
+from ..io import TemperatureBatch, decode_payloads, decode_rows, encode
+from ..online import EngineStep, ScheduledEngine
 from .batch import Outcome, find_inputs, format_summary, process_many, process_one
 from .pipeline import ProcessConfig, ProcessResult, process
-from .schedule import EngineStep, ScheduledEngine
-from .temperature_codec import TemperatureBatch, decode_payloads, decode_rows, encode
 
 __all__ = [
     "EngineStep",

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DataError, TcompError
+from ..io import is_data_file
 from .pipeline import ProcessConfig, ProcessResult, process
 from .progress import progress_bar
 
@@ -35,12 +36,7 @@ def find_inputs(directory: Path) -> list[Path]:
     """The bags, ``.mcap`` and ``.csv`` files directly inside ``directory``, sorted by name."""
     if not directory.is_dir():
         raise DataError(f"{directory}: not a directory")
-    found = [
-        item
-        for item in sorted(directory.iterdir())
-        if (item.is_dir() and (item / "metadata.yaml").is_file())
-        or (item.is_file() and item.suffix.lower() in (".mcap", ".csv"))
-    ]
+    found = [item for item in sorted(directory.iterdir()) if is_data_file(item)]
     if not found:
         raise DataError(f"{directory}: holds no bag directory, .mcap or .csv file")
     return found

@@ -1,10 +1,11 @@
 """``tcomp process``: one recorded bag or CSV file in, compensated outputs out, streamed.
 
-Reading goes chunk by chunk (:mod:`.mcap_read`, bulk decoding by :mod:`.temperature_codec`);
-samples are paired by identical stamps (:mod:`.pairing`); the pairs drive the node's engine,
-:class:`~tcomp_core.online.OnlineCompensator`, on a schedule set by the stamps alone
-(:mod:`.schedule`: batches of ``batch_s``, re-estimation every ``update_period_s`` of stamp
-time); the results go to a bag or CSV file as they come (:mod:`.output`). Memory holds a
+Reading goes chunk by chunk (:mod:`tcomp_core.io.stream`, bulk decoding in :mod:`tcomp_core.io`);
+the samples drive the node's engine (:class:`~tcomp_core.online.Engine`: the same pair
+matcher, compensator and health rules) on a schedule set by the stamps alone
+(:mod:`tcomp_core.online.schedule`: batches of ``batch_s``, re-estimation every
+``update_period_s`` and a ``/diagnostics`` status every second of stamp time, each read at its
+stamp); the results go to a bag or CSV file as they come (:mod:`.output`). Memory holds a
 chunk, the compensator's window, the pairs of the current batch and the tail kept for the
 diagnosis, whatever the length of the record.
 
@@ -16,7 +17,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -28,32 +28,23 @@ from ..errors import DataError, TcompError
 from ..io import (
     DEFAULT_COLUMNS,
     DEFAULT_TOPICS,
-    TEMPERATURE_TYPE,
+    BagStream,
+    CsvStream,
     Record,
-    _bag_location,
-    _clear_for_writing,
-    _format_stamp,
-    _is_csv,
-    _names,
-    _seconds_to_ns,
-    read_csv,
+    clear_for_writing,
+    format_stamp,
+    is_csv,
+    open_stream,
 )
-from ..online import EstimateStatus, OnlineConfig
-from ..status_values import engine_values, format_value
-from .mcap_read import McapScan, payloads
+from ..online import Engine, EngineStep, OnlineConfig, PairCounters, ScheduledEngine
+from ..online.health import Level, format_value
+from ..online.schedule import REF
 from .output import BagOutput, CsvOutput
-from .pairing import Pairs, StampPairer
-from .schedule import ScheduledEngine
-from .temperature_codec import TemperatureBatch, decode_rows
 
 __all__ = ["ProcessConfig", "ProcessResult", "process"]
 
-_ROLES = ("tc1", "tc2", "ref")
-#: Rows of CSV input handed over at a time.
-CSV_BLOCK = 100_000
 #: Shortest gap-free stretch the diagnosis is run on, samples.
 MIN_DIAGNOSIS_SAMPLES = 1000
-_OK, _WARN, _ERROR = 0, 1, 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,6 +76,14 @@ class ProcessConfig:
         ``header.frame_id`` of ``gas_temperature``; '' = that of tc1.
     hardware_id : str
         ``hardware_id`` of the diagnostic statuses.
+    sync_slop_s : float
+        Largest stamp difference of a tc1/tc2 pair, seconds (0 = exact stamps; the node's
+        ``sync_slop_s``).
+    queue_size : int
+        Unmatched samples kept per input (the node's ``queue_size``).
+    silence_timeout_s : float
+        A sensor silent this long in stamp time is an ERROR in the diagnostics, seconds (the
+        node's ``silence_timeout_s``).
     """
 
     online: OnlineConfig = field(default_factory=OnlineConfig)
@@ -98,8 +97,17 @@ class ProcessConfig:
     overwrite: bool = False
     frame_id: str = ""
     hardware_id: str = "thermocouple-pair"
+    sync_slop_s: float = 0.0
+    queue_size: int = 2000
+    silence_timeout_s: float = 1.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.sync_slop_s) and 0.0 <= self.sync_slop_s <= 1.0):
+            raise ValueError(f"sync_slop_s={self.sync_slop_s!r} must be in [0, 1] s")
+        if self.queue_size < 1:
+            raise ValueError(f"queue_size={self.queue_size!r} must be >= 1")
+        if not (math.isfinite(self.silence_timeout_s) and self.silence_timeout_s > 0.0):
+            raise ValueError(f"silence_timeout_s={self.silence_timeout_s!r} must be > 0 s")
         if not (math.isfinite(self.update_period_s) and self.update_period_s > 0.0):
             raise ValueError(f"update_period_s={self.update_period_s!r} must be > 0 s")
         if not (math.isfinite(self.batch_s) and self.batch_s > 0.0):
@@ -122,7 +130,9 @@ class ProcessResult:
     gas : int
         Reconstructed gas samples written.
     estimates : int
-        Re-estimations (entries of the τ history).
+        Re-estimations.
+    reports : int
+        ``/diagnostics`` statuses written (one per second of stamp time: the τ history).
     tau : (float, float) or None
         The last τ1, τ2 in use, seconds.
     verdict : str
@@ -145,6 +155,7 @@ class ProcessResult:
     tau: tuple[float, float] | None
     verdict: str
     seconds: float
+    reports: int = 0
     warnings: list[str] = field(default_factory=list)
     counters: dict[str, int] = field(default_factory=dict)
     diagnosis: dict[str, str] = field(default_factory=dict)
@@ -166,112 +177,6 @@ class Progress(Protocol):
 
 
 # --------------------------------------------------------------------------------------------
-# Inputs
-
-
-@dataclass
-class _Block:
-    """Decoded samples per role and, from a bag, the raw records to copy."""
-
-    series: dict[str, TemperatureBatch]
-    records: dict[str, list[NDArray[np.uint8]]]
-    fraction: float
-
-
-def _bag_files(path: Path) -> list[Path]:
-    """The MCAP files of a bag directory (from ``metadata.yaml``) or a bare MCAP file."""
-    location = _bag_location(path)
-    if location.is_file():
-        return [location]
-    from ruamel.yaml import YAML
-
-    try:
-        info = YAML(typ="safe").load((location / "metadata.yaml").read_text("utf8"))
-        names = info["rosbag2_bagfile_information"]["relative_file_paths"]
-    except Exception as exc:  # ruamel raises many types; a bad metadata.yaml is a data error
-        raise DataError(f"{location}/metadata.yaml: cannot read the file list: {exc}") from exc
-    files = [location / name for name in names]
-    missing = [str(f) for f in files if not f.is_file()]
-    if missing:
-        raise DataError(f"{location}: metadata.yaml lists missing files: {', '.join(missing)}")
-    return files
-
-
-class _BagInput:
-    def __init__(self, path: Path, topics: Mapping[str, str]) -> None:
-        self.path = path
-        self.topics = dict(topics)
-        self.scan = McapScan(_bag_files(path), list(topics.values()), TEMPERATURE_TYPE)
-
-    def __iter__(self) -> Iterator[_Block]:
-        roles = {topic: role for role, topic in self.topics.items()}
-        for chunk in self.scan:
-            series, records = {}, {}
-            for topic, blocks in chunk.topics.items():
-                role = roles[topic]
-                try:
-                    series[role] = TemperatureBatch.concatenate(
-                        [decode_rows(payloads(block)) for block in blocks]
-                    )
-                except DataError as exc:
-                    raise DataError(
-                        f"{chunk.file}: topic {topic}, chunk at byte {chunk.offset}: {exc}"
-                    ) from exc
-                records[role] = blocks
-            total = max(self.scan.bytes_total, 1)
-            yield _Block(series, records, min(self.scan.bytes_read / total, 1.0))
-
-    def qos_text(self, role: str) -> str | None:
-        """The input channel's ``offered_qos_profiles``, as recorded (None if it has none)."""
-        return self.scan.metadata.get(self.topics[role], {}).get("offered_qos_profiles")
-
-    def check_topics(self) -> None:
-        listed = ", ".join(
-            f"{topic} ({', '.join(sorted(kinds))})"
-            for topic, kinds in sorted(self.scan.types.items())
-        )
-        for role in ("tc1", "tc2"):
-            if self.topics[role] not in self.scan.types:
-                raise DataError(
-                    f"{self.path}: no topic {self.topics[role]}; the bag has "
-                    f"{listed or 'no topics'}"
-                )
-
-
-class _CsvInput:
-    def __init__(self, path: Path, columns: tuple[str, str, str | None]) -> None:
-        self.path = path
-        self.record = read_csv(path, columns=columns)
-        self.topics = {
-            role: topic
-            for role, topic in zip(_ROLES, DEFAULT_TOPICS, strict=True)
-            if topic is not None and (role != "ref" or self.record.ref is not None)
-        }
-
-    def __iter__(self) -> Iterator[_Block]:
-        record = self.record
-        stamps = _seconds_to_ns(record.time)
-        if stamps.size and stamps.min() < 0:
-            raise DataError(f"{self.path}: column 'time' has negative times; stamps must be >= 0")
-        columns = {"tc1": record.tc1, "tc2": record.tc2, "ref": record.ref}
-        for start in range(0, stamps.size, CSV_BLOCK):
-            part = slice(start, start + CSV_BLOCK)
-            series = {
-                role: TemperatureBatch(stamps[part], values[part], np.zeros(stamps[part].size))
-                for role, values in columns.items()
-                if values is not None
-            }
-            yield _Block(series, {}, min((start + CSV_BLOCK) / stamps.size, 1.0))
-
-    def qos_text(self, role: str) -> str | None:
-        """A CSV file has no QoS: the default is offered."""
-        return None
-
-    def check_topics(self) -> None:
-        """CSV columns were checked on reading."""
-
-
-# --------------------------------------------------------------------------------------------
 # The diagnosis
 
 
@@ -283,11 +188,12 @@ class _Tail:
         self.parts: list[tuple[NDArray, ...]] = []
         self.size = 0
 
-    def add(self, pairs: Pairs) -> None:
-        if not len(pairs):
+    def add(self, *columns: NDArray) -> None:
+        """Append pairs: stamps (ns), tc1, tc2, ref (degrees C), shape (M,) each."""
+        if not columns[0].size:
             return
-        self.parts.append((pairs.stamps_ns, pairs.tc1, pairs.tc2, pairs.ref))
-        self.size += len(pairs)
+        self.parts.append(columns)
+        self.size += int(columns[0].size)
         while self.size - self.parts[0][0].size >= self.capacity:
             self.size -= self.parts.pop(0)[0].size
 
@@ -304,30 +210,30 @@ class _Tail:
         return tuple(c[part] for c in columns)
 
 
-def _diagnose(tail: _Tail, source: Path, gap_factor: float) -> tuple[str, dict[str, str], int]:
+def _diagnose(tail: _Tail, source: Path, gap_factor: float) -> tuple[str, dict[str, str], Level]:
     """Run the diagnosis on the tail: verdict, key values, level."""
     from ..diagnose import diagnose
 
     if tail.size == 0:
-        return "failed: no pairs", {}, _ERROR
+        return "failed: no pairs", {}, Level.ERROR
     stamps, tc1, tc2, ref = tail.stretch(gap_factor)
     if stamps.size < MIN_DIAGNOSIS_SAMPLES:
-        return f"failed: longest gap-free stretch has only {stamps.size} pairs", {}, _WARN
+        return f"failed: longest gap-free stretch has only {stamps.size} pairs", {}, Level.WARN
     dt = float(np.median(np.diff(stamps))) * 1e-9
     record = Record(
-        time=np.arange(stamps.size) * dt,
+        time=np.arange(stamps.size, dtype=np.float64) * dt,
         tc1=tc1,
         tc2=tc2,
         ref=ref if np.isfinite(ref).all() else None,
-        source=f"{source} (pairs stamped {_format_stamp(int(stamps[0]))} to "
-        f"{_format_stamp(int(stamps[-1]))})",
+        source=f"{source} (pairs stamped {format_stamp(int(stamps[0]))} to "
+        f"{format_stamp(int(stamps[-1]))})",
         dt=dt,
     )
     started = time.perf_counter()
     try:
         result = diagnose(record)
     except (TcompError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        return f"failed: {exc}", {"samples": str(stamps.size)}, _ERROR
+        return f"failed: {exc}", {"samples": str(stamps.size)}, Level.ERROR
     top = result.suspects[0] if result.suspects else None
     values = {
         "verdict": result.verdict,
@@ -345,60 +251,56 @@ def _diagnose(tail: _Tail, source: Path, gap_factor: float) -> tuple[str, dict[s
         "top_suspect_error_pct": format_value(top.error_pct if top else math.nan),
         "diagnosis_duration_s": format_value(time.perf_counter() - started),
     }
-    return result.verdict, values, _OK if result.verdict == "none" else _WARN
+    return result.verdict, values, Level.OK if result.verdict == "none" else Level.WARN
 
 
 # --------------------------------------------------------------------------------------------
 # The run
 
 
-def _history_values(
-    engine: ScheduledEngine, status: EstimateStatus, counters: Mapping[str, int], published: int
-) -> dict[str, str]:
-    """Key values of one τ history entry (the node's names, where they apply offline)."""
-    return {
-        **engine_values(engine.compensator, status),
-        "matched": str(counters["matched"]),
-        "unmatched": str(counters["unmatched_tc1"] + counters["unmatched_tc2"]),
-        "out_of_order": str(counters["out_of_order"]),
-        "duplicates": str(counters["duplicates"]),
-        "invalid_tc1": str(counters["invalid_tc1"]),
-        "invalid_tc2": str(counters["invalid_tc2"]),
-        "published": str(published),
-    }
-
-
-def _status_level(status: EstimateStatus) -> tuple[int, str]:
-    if not status.accepted:
-        return _WARN, f"estimate not accepted: {status.reason}"
-    if status.poor_fit:
-        return _WARN, f"poor fit: model error {status.model_error_pct:.3g} %"
-    return _OK, "ok"
-
-
-def _open_input(source: Path, config: ProcessConfig) -> _BagInput | _CsvInput:
-    if _is_csv(source):
-        return _CsvInput(source, _names(config.columns, DEFAULT_COLUMNS, "columns"))
-    tc1, tc2, ref = _names(config.topics, DEFAULT_TOPICS, "topics")
-    topics = {"tc1": tc1, "tc2": tc2, **({"ref": ref} if ref else {})}
-    return _BagInput(source, topics)
-
-
-def _dropped_warnings(source: Path, pairer: StampPairer) -> list[str]:
+def _dropped_warnings(source: Path, counters: PairCounters) -> list[str]:
     what = {
-        "unmatched_tc1": "tc1 samples without a tc2 sample of the same stamp",
-        "unmatched_tc2": "tc2 samples without a tc1 sample of the same stamp",
+        "unmatched_tc1": "tc1 samples without a tc2 sample to pair with",
+        "unmatched_tc2": "tc2 samples without a tc1 sample to pair with",
         "out_of_order": "samples stamped at or before a pair already processed",
         "duplicates": "samples repeating a stamp",
         "invalid_tc1": "non-finite tc1 temperatures",
         "invalid_tc2": "non-finite tc2 temperatures",
     }
+    values = counters.as_dict()
     return [
-        f"{source}: dropped {pairer.counters[name]} {text} (the first stamped "
-        f"{_format_stamp(stamp)})"
+        f"{source}: dropped {values[name]} {text} (the first stamped {format_stamp(stamp)})"
         for name, text in what.items()
-        if (stamp := pairer.first_dropped.get(name)) is not None
+        if (stamp := counters.first_dropped.get(name)) is not None
     ]
+
+
+class _RefJoin:
+    """Attach the reference sample of each pair's stamp (NaN where there is none).
+
+    The reference samples of the current batch and the one before are searched, so a reference
+    stamped like its pair but delivered one batch later than the pair is still found only when
+    it is in one of those two batches.
+    """
+
+    def __init__(self) -> None:
+        self._stamps = np.empty(0, np.int64)
+        self._values = np.empty(0)
+
+    def __call__(self, step: EngineStep) -> NDArray[np.float64]:
+        new_stamps, new_values = step.ref
+        stamps = np.concatenate((self._stamps, new_stamps))
+        values = np.concatenate((self._values, new_values))
+        order = np.argsort(stamps, kind="stable")
+        stamps, values = stamps[order], values[order]
+        self._stamps, self._values = new_stamps, new_values
+        wanted = step.pairs.stamps_ns
+        ref = np.full(wanted.size, np.nan)
+        if stamps.size and wanted.size:
+            at = np.clip(np.searchsorted(stamps, wanted), 0, stamps.size - 1)
+            hit = stamps[at] == wanted
+            ref[hit] = values[at[hit]]
+        return ref
 
 
 def process(
@@ -437,11 +339,11 @@ def process(
     source, output = Path(source), Path(output)
     if output.resolve() == source.resolve():
         raise DataError(f"{output}: the output would replace the input")
-    reader = _open_input(source, config)
-    _clear_for_writing(output, config.overwrite, bag=not _is_csv(output))
+    reader = open_stream(source, topics=config.topics, columns=config.columns)
+    clear_for_writing(output, config.overwrite, bag=not is_csv(output))
     output.parent.mkdir(parents=True, exist_ok=True)
     sink: BagOutput | CsvOutput
-    if _is_csv(output):
+    if is_csv(output):
         sink = CsvOutput(output, with_ref="ref" in reader.topics)
     else:
         sink = BagOutput(
@@ -466,78 +368,85 @@ def _run(
     source: Path,
     output: Path,
     config: ProcessConfig,
-    reader: _BagInput | _CsvInput,
+    reader: BagStream | CsvStream,
     sink: BagOutput | CsvOutput,
     progress: Progress | None,
     started: float,
 ) -> ProcessResult:
-    engine = ScheduledEngine(config.online, config.update_period_s, config.batch_s)
-    pairer = StampPairer()
+    engine = Engine(
+        config.online,
+        slop_ns=round(config.sync_slop_s * 1e9),
+        queue_size=config.queue_size,
+        update_period_s=config.update_period_s,
+        silence_timeout_s=config.silence_timeout_s,
+    )
+    schedule = ScheduledEngine(
+        engine, update_period_s=config.update_period_s, batch_s=config.batch_s
+    )
     tail = _Tail(config.diagnose_samples)
+    join_ref = _RefJoin()
     frame_id = config.frame_id
     last_good: dict[str, tuple[int, int]] = {}  # role -> (messages read, newest stamp)
-    published = 0
+    indices = {"tc1": 0, "tc2": 1, "ref": REF}
 
-    def consume(pairs: Pairs, finish: bool = False) -> None:
-        nonlocal published
-        sink.pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2, pairs.ref)
-        tail.add(pairs)
-        steps = engine.feed(pairs.stamps_ns, pairs.tc1, pairs.tc2)
-        if finish:
-            steps += engine.finish()
-        if isinstance(sink, CsvOutput) and engine.compensator.period_s:
-            period = engine.compensator.period_s
+    def consume(steps: list[EngineStep]) -> None:
+        compensator = engine.compensator
+        if isinstance(sink, CsvOutput) and compensator.period_s:
+            period = compensator.period_s
             sink.keep_rows = round((config.online.window_s + 2 * config.batch_s) / period) + 256
         for step in steps:
-            sink.gas(
-                step.stamps_ns, step.gas, step.variance, step.tau, frame_id, step.last_stamp_ns
-            )
-            published += int(step.stamps_ns.size)
-            if step.status is not None:
-                level, message = _status_level(step.status)
-                stamp = step.status.stamp_ns or step.last_stamp_ns
-                values = _history_values(engine, step.status, pairer.counters, published)
-                sink.estimate(stamp, level, message, values)
+            pairs = step.pairs
+            ref = join_ref(step)
+            sink.pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2, ref)
+            tail.add(pairs.stamps_ns, pairs.tc1, pairs.tc2, ref)
+            gas = step.gas
+            sink.gas(gas.stamps_ns, gas.gas, gas.variance, step.tau, frame_id, step.last_stamp_ns)
+            if step.health is not None:
+                health = step.health
+                sink.estimate(step.last_stamp_ns, int(health.level), health.message, health.values)
 
     for block in reader:
+        samples = {}
         for role, batch in block.series.items():
-            pairer.add(role, batch.stamps_ns, batch.temperature)
+            samples[indices[role]] = (batch.stamps_ns, batch.temperature)
             sink.inputs(role, batch, block.records.get(role), reader.qos_text(role))
             if len(batch):
                 count, newest = last_good.get(role, (0, np.iinfo(np.int64).min))
                 last_good[role] = (count + len(batch), max(newest, int(batch.stamps_ns.max())))
                 if role == "tc1" and not frame_id:
                     frame_id = batch.frame_id
-        consume(pairer.pop())
+        consume(schedule.feed(samples))
         if progress is not None:
-            progress.update(block.fraction, pairer.counters["matched"])
+            progress.update(block.fraction, engine.counters.matched)
     reader.check_topics()
-    consume(pairer.pop(final=True), finish=True)
-    pairs = pairer.counters["matched"]
+    consume(schedule.finish())
+    engine.matcher.discard_pending()
+    pairs = engine.counters.matched
     if pairs == 0:
         raise DataError(f"{source}: no tc1/tc2 samples with identical stamps: nothing to process")
-    warnings = _dropped_warnings(source, pairer)
-    truncation = getattr(getattr(reader, "scan", None), "truncation", None)
+    warnings = _dropped_warnings(source, engine.counters)
+    truncation = reader.truncation
     if truncation is not None:
         where = "; ".join(
-            f"{reader.topics[role]}: {count} messages, the last good stamped "
-            f"{_format_stamp(stamp)}"
+            f"{reader.topics[role]}: {count} messages, the last good stamped {format_stamp(stamp)}"
             for role, (count, stamp) in last_good.items()
         )
-        warnings.insert(0, f"input truncated: {truncation}; processed up to there ({where})")
-    verdict, diagnosis = "skipped", {}
+        warnings[:0] = [str(truncation), f"{source}: processed up to there ({where})"]
+    verdict: str = "skipped"
+    diagnosis: dict[str, str] = {}
     if config.diagnose:
         verdict, diagnosis, level = _diagnose(tail, source, config.online.gap_factor)
         last_stamp = max(stamp for _, stamp in last_good.values())
         sink.diagnosis(last_stamp, level, f"diagnosis verdict: {verdict}", diagnosis)
     sink.close()
-    counters: dict[str, Any] = {**pairer.counters, **engine.compensator.counters}
+    counters: dict[str, Any] = {**engine.counters.as_dict(), **engine.compensator.counters}
     return ProcessResult(
         source=source,
         output=output,
         pairs=pairs,
-        gas=published,
-        estimates=engine.estimates,
+        gas=engine.published,
+        estimates=schedule.estimates,
+        reports=schedule.reports,
         tau=engine.compensator.tau,
         verdict=verdict,
         seconds=time.perf_counter() - started,

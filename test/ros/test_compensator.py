@@ -78,12 +78,12 @@ class Harness:
     def catch_up(self, timeout=10.0):
         """Spin until the node has received everything sent so far (keeps queues short)."""
         sent = list(self.sent)
-        received = self.node._sensors
+        node = self.node
         assert self.spin_until(
             self.executor,
-            lambda: all(received[i].received >= sent[i] for i in (0, 1)),
+            lambda: all(node.received[i] >= sent[i] for i in (0, 1)),
             timeout,
-        ), f"node received {[s.received for s in received]} of {sent}"
+        ), f"node received {node.received} of {sent}"
 
     def settle(self, seconds):
         deadline = time.monotonic() + seconds
@@ -151,6 +151,7 @@ def harness(ros_context, spin_until):
         item.peer.destroy_node()
 
 
+@pytest.mark.slow
 def test_tau_from_diagnostics_converges_within_two_percent(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=6.0, seed=5)
     h = harness(window_s=4.0, update_period_s=0.2)
@@ -180,7 +181,7 @@ def test_gas_temperature_stamps_count_and_values(harness):
     first = 1500
     h.feed(stamps[:first], data.tc1[:first], data.tc2[:first])
     h.next_diagnostics(lambda s: values(s)["estimate_accepted"] == "true")
-    assert h.spin_until(h.executor, lambda: len(h.gas) == h.node._published, 5.0)
+    assert h.spin_until(h.executor, lambda: len(h.gas) == h.node.engine.published, 5.0)
     before = len(h.gas)
     h.feed(stamps[first:], data.tc1[first:], data.tc2[first:])
     expected = data.tc1.size - first
@@ -201,7 +202,7 @@ def test_parameter_change_applies_and_bad_value_is_rejected(harness):
     result = node.set_parameters([Parameter("window_s", value=1.0)])[0]
     assert result.successful
     assert node.get_parameter("window_s").value == 1.0
-    assert node._engine.config.window_s == 1.0
+    assert node.engine.compensator.config.window_s == 1.0
     for bad in (
         Parameter("method", value="nope"),
         Parameter("phi", value=-1.0),
@@ -212,8 +213,8 @@ def test_parameter_change_applies_and_bad_value_is_rejected(harness):
         assert not result.successful, bad.name
     assert node.get_parameter("method").value == "beta-gtls"
     assert node.get_parameter("phi").value == 1.0
-    assert node._engine.config.window_s == 1.0
-    assert node._engine.config.method == "beta-gtls"
+    assert node.engine.compensator.config.window_s == 1.0
+    assert node.engine.compensator.config.method == "beta-gtls"
     # An atomic change with one bad value changes nothing.
     results = node.set_parameters_atomically(
         [Parameter("window_s", value=3.0), Parameter("method", value="nope")]
@@ -222,6 +223,7 @@ def test_parameter_change_applies_and_bad_value_is_rejected(harness):
     assert node.get_parameter("window_s").value == 1.0
 
 
+@pytest.mark.slow
 def test_method_change_at_run_time_takes_effect(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=2)
     h = harness(window_s=3.0, update_period_s=0.1)
@@ -232,6 +234,7 @@ def test_method_change_at_run_time_takes_effect(harness):
     assert float(values(status)["latest_tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
 
 
+@pytest.mark.slow
 def test_ml_eiv_puts_confidence_intervals_in_the_diagnostics(harness):
     data = simulate_pair("ramp", noise_percent=2.0, duration=4.0, seed=3)
     h = harness(window_s=3.0, update_period_s=0.2, method="ml-eiv")
@@ -245,6 +248,7 @@ def test_ml_eiv_puts_confidence_intervals_in_the_diagnostics(harness):
         assert low * 0.97 < tau < high * 1.03  # the interval (with slack for one draw) holds it
 
 
+@pytest.mark.slow
 def test_kalman_reconstruction_and_tracking_by_name(harness):
     data = simulate_pair("sinusoid", noise_percent=2.0, duration=4.0, seed=4)
     h = harness(
@@ -261,7 +265,7 @@ def test_kalman_reconstruction_and_tracking_by_name(harness):
     assert found["signal_model_error"] == ""
     assert float(found["tracking_memory_s"]) == 0.5
     assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.05)
-    assert h.spin_until(h.executor, lambda: len(h.gas) == h.node._published, 5.0)
+    assert h.spin_until(h.executor, lambda: len(h.gas) == h.node.engine.published, 5.0)
     # Once the filter runs on the fitted model its estimates carry their own variance.
     late = np.array([stamp for stamp, _ in h.gas]) > stamps[-500]
     assert late.sum() > 400
@@ -312,6 +316,7 @@ def test_out_of_order_and_duplicate_stamps(harness):
     assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
 
 
+@pytest.mark.slow
 def test_silent_sensor_is_an_error_and_recovery_is_seen(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=12.0, seed=8)
     stamps = stamps_for(data.tc1.size, data.dt)
@@ -334,6 +339,7 @@ def test_silent_sensor_is_an_error_and_recovery_is_seen(harness):
     assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
 
 
+@pytest.mark.slow
 def test_sensors_at_different_rates_pair_within_slop(harness):
     fast = simulate_pair("ramp", noise_percent=0.3, duration=5.0, dt=0.001, seed=9)
     stamps = stamps_for(fast.tc1.size, fast.dt)
@@ -374,6 +380,7 @@ def test_latency_histogram_quantiles():
     assert float(histogram.summary()["latency_p99_total_ms"]) == pytest.approx(99.1, abs=0.11)
 
 
+@pytest.mark.slow
 def test_poor_fit_names_the_suspect_and_effects_make_the_error_fall_live(harness):
     bag = read_record(BAGS / "conduction_500hz")  # sensors conducting heat to their supports
     # One window's worth from the start, where the sensors are at rest: the window then holds
@@ -467,6 +474,7 @@ class FailingDiagnoser:
         pass
 
 
+@pytest.mark.slow
 def test_a_failed_diagnosis_is_reported_and_the_node_carries_on(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=10)
     h = harness(window_s=3.0, update_period_s=0.1, effects="delay", diagnosis_period_s=1.0)
@@ -483,6 +491,7 @@ def test_a_failed_diagnosis_is_reported_and_the_node_carries_on(harness):
     assert float(values(status)["tau1_s"]) == pytest.approx(data.tau1, rel=0.03)
 
 
+@pytest.mark.slow
 def test_the_timer_diagnoses_only_a_poor_fit(harness):
     good = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=9)
     h = harness(window_s=3.0, update_period_s=0.2, diagnosis_period_s=1.0)

@@ -1,10 +1,14 @@
-"""``tcomp process`` gives what the compensator node publishes for the same bag, sample for sample.
+"""``tcomp process`` gives what the compensator node publishes for the same bag.
 
 The node runs in-process with its timers replaced by the offline schedule (documented in
-:mod:`tcomp_core.process.schedule`): every message of the bag goes through the node's own
-subscription callback as the serialized bytes it would receive, the inbox is drained every
-``batch_s`` of stamp time and τ re-estimated every ``update_period_s``; what the node hands to
-its ``gas_temperature`` publisher is compared with the bag ``tcomp process`` writes.
+:mod:`tcomp_core.online.schedule`) and its clock set to the stamp time (``use_sim_time`` with the
+time overridden): every message of the bag goes through the node's own subscription callback as
+the serialized bytes it would receive, the inbox is drained every ``batch_s`` of stamp time, τ
+re-estimated every ``update_period_s`` and the diagnostics published every second. What the node
+hands to its ``gas_temperature`` and ``/diagnostics`` publishers is compared with the bag
+``tcomp process`` writes: gas sample for sample, bit for bit; diagnostics status for status, key
+for key, level for level and value for value, except the live-only latency
+(:data:`tcomp_core.online.health.LIVE_ONLY_KEYS`), which is ``nan`` offline.
 """
 
 from __future__ import annotations
@@ -14,15 +18,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
+from rclpy.time import Time
 from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_typestore
 
-from tcomp_core.online import OnlineConfig
+from tcomp_core.io import decode_message as decode
+from tcomp_core.online import DIAGNOSTICS_PERIOD_S, OnlineConfig
+from tcomp_core.online.health import LIVE_ONLY_KEYS
 from tcomp_core.process import ProcessConfig, process
 from tcomp_ros.compensator import CompensatorNode
-from tcomp_ros.temperature_cdr import decode
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 TOPICS = ("/tc1/temperature", "/tc2/temperature")
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 
 
 def _messages(bag: Path) -> list[tuple[int, int, bytes]]:
@@ -36,37 +44,74 @@ def _messages(bag: Path) -> list[tuple[int, int, bytes]]:
     return found
 
 
-def _node_outputs(node: CompensatorNode, messages, batch_s: float, update_s: float):
+def _drive_node(node: CompensatorNode, messages, batch_s: float, update_s: float):
+    """Feed the node on the offline schedule; return its gas messages and diagnostics.
+
+    The schedule written out: stamp-time batches; each drained alone until τ is known, then
+    together up to the next batch that calls for an update or a report (cut before one that
+    would bring more than ``queue_size`` samples of an input).
+    """
     published: list[bytes] = []
-    node._gas_pub.publish = published.append  # what the node hands to its publisher
+    statuses: list[tuple[int, object]] = []
+    node._gas_pub.publish = published.append  # what the node hands to its publishers
+    node._diag_pub.publish = lambda array: statuses.append(
+        (array.header.stamp.sec * 10**9 + array.header.stamp.nanosec, array.status[0])
+    )
+    clock = node.get_clock()
+    queue_size = node.get_parameter("queue_size").value
     t0 = min(stamp for stamp, _, _ in messages)
     batch_ns, update_ns = round(batch_s * 1e9), round(update_s * 1e9)
-    next_update = t0 + update_ns
+    report_ns = round(DIAGNOSTICS_PERIOD_S * 1e9)
+    next_update, next_report = t0 + update_ns, t0 + report_ns
     batches: dict[int, list] = {}
     for stamp, index, raw in messages:
         batches.setdefault((stamp - t0) // batch_ns, []).append((stamp, index, raw))
-    for key in sorted(batches):
-        for _, index, raw in batches[key]:
+    pending = [batches[key] for key in sorted(batches)]
+    while pending:
+        end = 0
+        if node.engine.compensator.tau is not None:
+            counts = [0, 0]
+            for end, batch in enumerate(pending):
+                sizes = [sum(1 for _, i, _ in batch if i == index) for index in (0, 1)]
+                if end and any(c + n > queue_size for c, n in zip(counts, sizes, strict=True)):
+                    end -= 1
+                    break
+                counts = [c + n for c, n in zip(counts, sizes, strict=True)]
+                last = max(stamp for stamp, _, _ in batch)
+                if last >= next_update or last >= next_report:
+                    break
+        group = [message for batch in pending[: end + 1] for message in batch]
+        del pending[: end + 1]
+        last = max(stamp for stamp, _, _ in group)
+        clock.set_ros_time_override(Time(nanoseconds=last))
+        for _, index, raw in group:
             node._on_sample(index, raw)
         node._process()
-        last = max(stamp for stamp, _, _ in batches[key])
         if last >= next_update:
             node.update_estimate()
             next_update = t0 + ((last - t0) // update_ns + 1) * update_ns
+        if last >= next_report:
+            node.publish_diagnostics()
+            next_report = t0 + ((last - t0) // report_ns + 1) * report_ns
     decoded = [decode(data) for data in published]
-    return (
-        np.array([stamp for stamp, _, _, _ in decoded], dtype=np.int64),
-        np.array([value for _, _, value, _ in decoded]),
-    )
+    stamps = np.array([stamp for stamp, _, _, _ in decoded], dtype=np.int64)
+    return stamps, np.array([value for _, _, value, _ in decoded]), statuses
 
 
 def _bag_outputs(bag: Path):
     with Reader(bag) as reader:
         wanted = [c for c in reader.connections if c.topic == "/gas_temperature"]
         decoded = [decode(bytes(raw)) for _, _, raw in reader.messages(wanted)]
+        diagnostics = [c for c in reader.connections if c.topic == "/diagnostics"]
+        statuses = []
+        for connection, _, raw in reader.messages(diagnostics):
+            array = TYPESTORE.deserialize_cdr(raw, connection.msgtype)
+            stamp = array.header.stamp.sec * 10**9 + array.header.stamp.nanosec
+            statuses.append((stamp, array.status[0]))
     return (
         np.array([stamp for stamp, _, _, _ in decoded], dtype=np.int64),
         np.array([value for _, _, value, _ in decoded]),
+        statuses,
     )
 
 
@@ -78,6 +123,7 @@ def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path,
     node = CompensatorNode(
         context=ros_context,
         parameter_overrides=[
+            Parameter("use_sim_time", value=True),
             Parameter("window_s", value=config.online.window_s),
             Parameter("update_period_s", value=config.update_period_s),
             Parameter("reconstruction", value=reconstruction),
@@ -85,12 +131,30 @@ def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path,
         ],
     )
     try:
-        node_stamps, node_gas = _node_outputs(
+        node_stamps, node_gas, node_statuses = _drive_node(
             node, _messages(bag), config.batch_s, config.update_period_s
         )
     finally:
         node.destroy_node()
-    stamps, gas = _bag_outputs(tmp_path / "out")
+    stamps, gas, statuses = _bag_outputs(tmp_path / "out")
     assert stamps.size == 4999  # every pair of the 10 s record but the last
     np.testing.assert_array_equal(stamps, node_stamps)
     np.testing.assert_array_equal(gas, node_gas)  # bit for bit
+
+    # The diagnostics: one per second of stamp time, the same keys, levels and values.
+    assert len(statuses) == len(node_statuses) == 9
+    for (stamp, offline), (node_stamp, live) in zip(statuses, node_statuses, strict=True):
+        assert stamp == node_stamp
+        assert int(offline.level) == live.level[0]
+        assert offline.message == live.message
+        assert offline.hardware_id == live.hardware_id
+        offline_values = [(kv.key, kv.value) for kv in offline.values]
+        live_values = [(kv.key, kv.value) for kv in live.values]
+        assert [key for key, _ in offline_values] == [key for key, _ in live_values]
+        for (key, value), (_, live_value) in zip(offline_values, live_values, strict=True):
+            if key in LIVE_ONLY_KEYS:
+                assert value == "nan"
+            else:
+                assert value == live_value, key
+    levels = {live.level[0] for _, live in node_statuses}
+    assert levels == {0}  # the ramp fits: OK from the first report on

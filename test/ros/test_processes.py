@@ -12,6 +12,8 @@ from rclpy.node import Node
 
 from tcomp_core.simulate import PAPER_TAU1, PAPER_TAU2
 
+pytestmark = pytest.mark.slow
+
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 
 

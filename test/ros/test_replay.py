@@ -179,6 +179,7 @@ def _run_replay(*ros_args, timeout=30):
     )
 
 
+@pytest.mark.slow
 def test_missing_bag_exits_with_clear_error(tmp_path):
     missing = tmp_path / "no_such_bag"
     completed = _run_replay("-p", f"bag:={missing}")
@@ -188,7 +189,8 @@ def test_missing_bag_exits_with_clear_error(tmp_path):
     assert "Traceback" not in output
 
 
-def test_truncated_bag_exits_with_clear_error(tmp_path, small_bag):
+@pytest.mark.slow
+def test_truncated_bag_replays_up_to_its_last_complete_record_with_a_warning(tmp_path, small_bag):
     path, _, _ = small_bag
     broken = tmp_path / "broken"
     broken.mkdir()
@@ -198,12 +200,14 @@ def test_truncated_bag_exits_with_clear_error(tmp_path, small_bag):
             data = data[: len(data) // 2]
         (broken / item.name).write_bytes(data)
     completed = _run_replay("-p", f"bag:={broken}")
-    assert completed.returncode == 1
+    assert completed.returncode == 0  # as every verb and tcomp process read it
     output = completed.stdout + completed.stderr
-    assert "broken" in output and "truncated" in output
+    assert "[WARN]" in output and f"{broken}/small.mcap: input truncated:" in output
+    assert "replay finished" in output
     assert "Traceback" not in output
 
 
+@pytest.mark.slow
 def test_bag_without_the_topics_exits_with_clear_error(tmp_path):
     path = tmp_path / "other"
     write_bag(path, np.arange(100) * 0.01, {"/other/temperature": np.ones(100)})
@@ -214,6 +218,7 @@ def test_bag_without_the_topics_exits_with_clear_error(tmp_path):
     assert "Traceback" not in output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_running_replay_stops_on_signal(small_bag, signum):
     path, _, _ = small_bag

@@ -1,0 +1,95 @@
+"""The option strings of tcomp, defined once, and the defaults its command line shows.
+
+Every name an option can take (estimators, signal kinds, combinations, reconstructions, signal
+models, effects) is a :data:`typing.Literal` here with its tuple of values beside it. The
+numerical modules import them from here, and so does the command line, which builds its parser
+from this module alone: it imports nothing but the standard library, so ``tcomp --help`` starts
+without loading numpy or scipy. Keep it that way.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, get_args
+
+__all__ = [
+    "BATCH_RECONSTRUCTIONS",
+    "COMBINATIONS",
+    "DEFAULT_COLUMNS",
+    "DEFAULT_TOPICS",
+    "EFFECT_NAMES",
+    "METHODS",
+    "MODELS",
+    "PAPER_DT",
+    "PAPER_DURATION",
+    "PAPER_METHODS",
+    "PAPER_TAU1",
+    "PAPER_TAU2",
+    "RECONSTRUCTIONS",
+    "RECONSTRUCT_FROM",
+    "SIGNALS",
+    "SIGNAL_MODELS",
+    "BatchReconstruction",
+    "Combination",
+    "EffectName",
+    "Method",
+    "ModelChoice",
+    "ModelKind",
+    "OnlineReconstruction",
+    "PaperMethod",
+    "ReconstructFrom",
+    "SignalKind",
+]
+
+#: The six estimators of Hung et al. (2005), in the paper's order.
+PaperMethod = Literal["tdr-kee", "gamma-ls", "gamma-tls", "beta-ls", "beta-tls", "beta-gtls"]
+PAPER_METHODS: tuple[str, ...] = get_args(PaperMethod)
+#: Every estimator: the paper's six and the maximum-likelihood errors-in-variables one.
+Method = Literal[PaperMethod, "ml-eiv"]
+METHODS: tuple[str, ...] = get_args(Method)
+
+#: Gas temperature signals of the simulator.
+SignalKind = Literal["sinusoid", "ramp", "multisine", "exhaust"]
+SIGNALS: tuple[str, ...] = get_args(SignalKind)
+
+#: How the two Eq. (7) reconstructions are combined into one.
+Combination = Literal["inverse-variance", "mean", "tc1", "tc2"]
+COMBINATIONS: tuple[str, ...] = get_args(Combination)
+
+#: Gas temperature models of the Kalman reconstructions.
+ModelKind = Literal["random-walk", "integrated-random-walk", "band-limited", "periodic"]
+MODELS: tuple[ModelKind, ...] = get_args(ModelKind)
+#: A model, or ``auto``: the most likely one, penalised by its number of settings.
+ModelChoice = Literal["auto", ModelKind]
+SIGNAL_MODELS: tuple[str, ...] = ("auto", *MODELS)
+
+#: Reconstructions of the online compensator (the node and ``tcomp process``): Eq. (7) or the
+#: causal Kalman filter.
+OnlineReconstruction = Literal["difference", "kalman"]
+RECONSTRUCTIONS: tuple[str, ...] = get_args(OnlineReconstruction)
+#: Reconstructions of a whole record (``tcomp reconstruct``): Eq. (7), the Kalman (RTS)
+#: smoother, or the causal filter alone as the node runs it.
+BatchReconstruction = Literal["difference", "kalman", "kalman-causal"]
+BATCH_RECONSTRUCTIONS: tuple[str, ...] = get_args(BatchReconstruction)
+#: Which Eq. (7) reconstruction the online compensator outputs.
+ReconstructFrom = Literal["fused", "tc1", "tc2"]
+RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
+
+#: The effect names used everywhere (API, CLI, JSON, diagnostics), in the order reports list
+#: them.
+EffectName = Literal["conduction", "radiation", "velocity", "delay", "calibration", "noise_ratio"]
+EFFECT_NAMES: tuple[str, ...] = get_args(EffectName)
+
+#: Topics of tc1, tc2 and the optional reference in a bag.
+DEFAULT_TOPICS: tuple[str, str, str | None] = (
+    "/tc1/temperature",
+    "/tc2/temperature",
+    "/tref/temperature",
+)
+#: Columns of tc1, tc2 and the optional reference in a CSV file (besides ``time``).
+DEFAULT_COLUMNS: tuple[str, str, str | None] = ("tc1", "tc2", "ref")
+
+#: Paper's simulation conditions (Sec. IV): τ1, τ2, τ_s in seconds, run length 10 s.
+PAPER_TAU1 = 0.0238
+PAPER_TAU2 = 0.1168
+PAPER_DT = 0.002
+PAPER_DURATION = 10.0

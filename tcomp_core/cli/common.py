@@ -1,0 +1,239 @@
+"""What the verbs of ``tcomp`` share: argument types, the DATA arguments, reading the data.
+
+Building a parser from this module costs only the standard library: the numerical core is
+imported inside the functions that run a verb (:func:`read_data`, :func:`estimate_with`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..choices import DEFAULT_TOPICS, EFFECT_NAMES, METHODS
+from ..errors import TcompError
+
+if TYPE_CHECKING:
+    from ..estimators import Estimate
+    from ..io import Record
+
+__all__ = [
+    "Verbs",
+    "add_data_arguments",
+    "add_estimator_arguments",
+    "add_force_argument",
+    "add_output_argument",
+    "add_source_arguments",
+    "effect_list",
+    "estimate_with",
+    "non_negative_float",
+    "phi_or_auto",
+    "positive_float",
+    "read_data",
+    "source_names",
+]
+
+#: The default topics as ``--help`` shows them.
+_DEFAULT_NAMES = tuple(name for name in DEFAULT_TOPICS if name is not None)
+#: The sub-command collection of the ``tcomp`` parser that each verb adds its parser to.
+#: (argparse has no public name for that type.)
+Verbs = argparse._SubParsersAction
+
+
+def positive_float(text: str) -> float:
+    """Argument type: a finite number > 0.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Naming the text, which argparse prints as a usage error.
+    """
+    value = float(text)
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """Argument type: a finite number >= 0.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Naming the text, which argparse prints as a usage error.
+    """
+    value = float(text)
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number >= 0")
+    return value
+
+
+def phi_or_auto(text: str) -> float | None:
+    """Argument type of ``--phi``: a ratio > 0, or ``auto`` (None: measured from the data)."""
+    return None if text == "auto" else positive_float(text)
+
+
+def effect_list(text: str) -> list[str]:
+    """Argument type: comma-separated effect names, each one of ``EFFECT_NAMES``.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Naming the unknown effect and the known ones.
+    """
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    for name in names:
+        if name not in EFFECT_NAMES:
+            raise argparse.ArgumentTypeError(
+                f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}"
+            )
+    return names
+
+
+def add_source_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """Add ``--topics`` and ``--columns``: where tc1, tc2 and ref are in a bag or a CSV file."""
+    parser.add_argument(
+        "--topics",
+        nargs="+",
+        metavar="TOPIC",
+        help=f"bag topics of tc1, tc2 and optionally ref (default {' '.join(_DEFAULT_NAMES)})",
+    )
+    parser.add_argument(
+        "--columns",
+        nargs="+",
+        metavar="COLUMN",
+        help="CSV columns of tc1, tc2 and optionally ref (default tc1 tc2 ref)",
+    )
+
+
+def add_data_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the DATA argument (CSV file or MCAP bag) with ``--topics`` and ``--columns``."""
+    parser.add_argument("data", type=Path, help="CSV file or rosbag2 MCAP bag")
+    add_source_arguments(parser)
+
+
+def add_estimator_arguments(parser: argparse.ArgumentParser, allow_all: bool = False) -> None:
+    """Add ``--method``, ``--prefilter-hz``, ``--phi`` and ``--alpha``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The verb's parser.
+    allow_all : bool
+        Also offer ``--method all`` (every estimator in turn).
+    """
+    choices = [*METHODS, "all"] if allow_all else list(METHODS)
+    parser.add_argument(
+        "--method", choices=choices, default="beta-gtls", help="estimator (default beta-gtls)"
+    )
+    parser.add_argument(
+        "--prefilter-hz",
+        type=positive_float,
+        help="zero-phase Butterworth pre-filter bandwidth before estimation, Hz",
+    )
+    parser.add_argument(
+        "--phi",
+        type=phi_or_auto,
+        default=1.0,
+        help="noise variance ratio sigma1^2/sigma2^2 for beta-gtls and ml-eiv (default 1); "
+        "'auto' measures it from the top of the two spectra",
+    )
+    parser.add_argument(
+        "--alpha",
+        type=positive_float,
+        help="time constant ratio tau1/tau2 for tdr-kee (estimated at crossovers if omitted)",
+    )
+
+
+def add_output_argument(
+    parser: argparse.ArgumentParser,
+    help_text: str,
+    *,
+    required: bool = True,
+    repeatable: bool = False,
+) -> None:
+    """Add ``-o/--output PATH``, the verb's output file or bag directory.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The verb's parser.
+    help_text : str
+        What the path is (its kinds: ``*.csv``, a bag directory, ...).
+    required : bool
+        The verb needs an output.
+    repeatable : bool
+        ``-o`` may be given several times (``args.output`` is then a list).
+    """
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        action="append" if repeatable else "store",
+        required=required,
+        help=help_text,
+    )
+
+
+def add_force_argument(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, help_text: str
+) -> None:
+    """Add ``--force``: replace existing outputs, which are refused without it."""
+    parser.add_argument("--force", action="store_true", help=help_text)
+
+
+def source_names(values: list[str] | None, what: str) -> tuple[str, str, str | None] | None:
+    """The ``--topics`` or ``--columns`` values as (tc1, tc2, ref or None); None if not given.
+
+    Parameters
+    ----------
+    values : list of str or None
+        The option's values.
+    what : str
+        ``"topics"`` or ``"columns"``, for the message.
+
+    Raises
+    ------
+    TcompError
+        If not two or three names are given.
+    """
+    if not values:
+        return None
+    if len(values) not in (2, 3):
+        raise TcompError(f"--{what} takes the tc1 and tc2 {what} and optionally ref")
+    return (values[0], values[1], values[2] if len(values) == 3 else None)
+
+
+def read_data(args: argparse.Namespace) -> Record:
+    """Read the DATA argument with the ``--topics`` / ``--columns`` options.
+
+    Raises
+    ------
+    TcompError
+        On a wrong number of topics or columns, or (as :class:`~tcomp_core.errors.DataError`)
+        a file that cannot be read, naming the file, topic or column, sample and value.
+    """
+    from ..io import read_record
+
+    topics = source_names(args.topics, "topics")
+    columns = source_names(args.columns, "columns")
+    return read_record(args.data, topics=topics, columns=columns)
+
+
+def estimate_with(record: Record, args: argparse.Namespace, method: str) -> Estimate:
+    """Estimate τ1, τ2 of ``record`` by ``method`` with the estimator options in ``args``.
+
+    ``--phi`` applies to the estimators that take it, ``--alpha`` to ``tdr-kee`` alone.
+    """
+    from ..estimators import PHI_METHODS, estimate
+
+    return estimate(
+        record.tc1,
+        record.tc2,
+        record.dt,
+        method,  # type: ignore[arg-type]
+        phi=args.phi if method in PHI_METHODS else 1.0,
+        alpha=args.alpha if method == "tdr-kee" else None,
+        prefilter_hz=args.prefilter_hz,
+    )

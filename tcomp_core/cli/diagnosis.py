@@ -1,0 +1,84 @@
+"""What ``tcomp diagnose`` and ``tcomp fit`` share: their output options, text and files."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..diagnose import Diagnosis
+
+__all__ = ["add_outputs", "format_diagnosis", "write_diagnosis"]
+
+
+def add_outputs(parser: argparse.ArgumentParser) -> None:
+    """Add ``--report DIR`` (HTML report) and ``--json FILE`` to a verb's parser."""
+    parser.add_argument("--report", type=Path, metavar="DIR", help="write an HTML report here")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="write the results as JSON")
+
+
+def write_diagnosis(diagnosis: Diagnosis, args: argparse.Namespace) -> int:
+    """Print the diagnosis, write ``--json`` and ``--report`` if given; returns exit status 0."""
+    from ..diagnose import diagnosis_to_dict
+
+    print(format_diagnosis(diagnosis))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(diagnosis_to_dict(diagnosis), indent=2) + "\n")
+        print(f"json: {args.json}")
+    if args.report:
+        from ..report import write_report  # matplotlib only when a report is asked for
+
+        print(f"report: {write_report(diagnosis, args.report)}")
+    return 0
+
+
+def format_diagnosis(diagnosis: Diagnosis) -> str:
+    """The text ``tcomp diagnose`` prints.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        The result of :func:`tcomp_core.diagnose.diagnose` or ``fit_effects``.
+
+    Returns
+    -------
+    str
+        Several lines: base model, where it fails, the suspects of each round, the error
+        staircase, the verdict and the final model.
+    """
+    base, final = diagnosis.base, diagnosis.final
+    lines = [
+        f"{diagnosis.source}: {diagnosis.time.size} samples at {1 / diagnosis.dt:.6g} Hz; "
+        f"tc{diagnosis.slow} (the slower) simulated from tc{3 - diagnosis.slow}",
+        f"base model (beta-GTLS, phi = 1): tau1 = {base.tau1:.5g} s, tau2 = {base.tau2:.5g} s, "
+        f"held-out error {base.error_pct:.3g} %",
+        "where it fails:",
+        *(f"  - {finding}" for finding in diagnosis.failure.findings),
+    ]
+    for number, suspects in enumerate(diagnosis.rounds, start=1):
+        lines.append(f"suspects, round {number} (best first):")
+        lines.append(f"  {'effect':<12} {'held-out %':>10} {'evidence':>9} {'significant':>11}")
+        for s in suspects:
+            lines.append(
+                f"  {s.effect:<12} {s.error_pct:>10.3g} {s.evidence:>+9.2f} "
+                f"{'yes' if s.significant else 'no':>11}"
+            )
+        best = suspects[0] if suspects else None
+        if best is not None:
+            lines.append(f"  {best.effect}: {best.signature}")
+    lines.append("error staircase (held-out error):")
+    for step in diagnosis.steps:
+        label = "base" if not step.effects else "+ " + " + ".join(step.effects)
+        lines.append(f"  {label:<40} {step.error_pct:8.3g} %")
+    lines.append(f"verdict: {diagnosis.verdict}")
+    lines.append(
+        f"final: effects {', '.join(final.effects) or 'none'}; tau1 = {final.tau1:.5g} s, "
+        f"tau2 = {final.tau2:.5g} s, held-out error {final.error_pct:.3g} %"
+    )
+    for name, value in diagnosis.ref_error_pct.items():
+        lines.append(f"reference vs {name}: {value:.3g} % of its spread")
+    lines.extend(f"note: {note}" for note in diagnosis.notes)
+    return "\n".join(lines)

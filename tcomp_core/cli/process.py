@@ -1,0 +1,240 @@
+"""``tcomp process``: recorded bags or CSV files in, compensated bags or CSV out.
+
+The engine options are the compensator node's parameters; their defaults here are those of
+:class:`~tcomp_core.online.OnlineConfig` and :class:`~tcomp_core.process.ProcessConfig`, written
+out so that building the parser imports neither (``test/test_cli.py`` checks they agree).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..choices import DEFAULT_COLUMNS, DEFAULT_TOPICS, METHODS, RECONSTRUCT_FROM, RECONSTRUCTIONS
+from ..errors import TcompError
+from .common import (
+    Verbs,
+    add_force_argument,
+    add_output_argument,
+    add_source_arguments,
+    non_negative_float,
+    positive_float,
+    source_names,
+)
+
+if TYPE_CHECKING:
+    from ..process import ProcessConfig
+
+__all__ = ["add_parser", "process_config", "run"]
+
+#: Defaults of the estimation window (s), the estimator and φ: ``OnlineConfig()``'s.
+WINDOW_S = 2.0
+METHOD = "beta-gtls"
+PHI = 1.0
+
+
+def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
+    """Add ``process`` to the sub-commands of ``tcomp``; returns its parser."""
+    parser = verbs.add_parser(
+        "process",
+        help="process recorded bags or CSV files into a new bag (or CSV) with gas_temperature, "
+        "the tau history and the diagnosis",
+        description="Read a rosbag2 MCAP bag or CSV record chunk by chunk, estimate tau1, tau2 "
+        "on a sliding window exactly as the compensator node does (re-estimation every "
+        "--update-period-s of stamp time), reconstruct the gas temperature and write a new "
+        "bag with the input topics, /gas_temperature, /diagnostics (the node's status, one "
+        "per second of stamp time) and /diagnosis (the verdict); or, when OUTPUT ends in .csv, "
+        "the columns "
+        "time,tc1,tc2[,ref],gas,tau1,tau2. A directory of bags is processed into a directory, "
+        "--jobs at a time.",
+    )
+    parser.add_argument(
+        "data", type=Path, help="bag (directory or .mcap), CSV file, or a directory of them"
+    )
+    add_output_argument(
+        parser, "output bag directory or .csv file; a directory for a directory of inputs"
+    )
+    add_source_arguments(parser)
+    _add_engine_arguments(parser)
+    _add_output_arguments(parser)
+    parser.set_defaults(handler=run)
+    return parser
+
+
+def _add_engine_arguments(parser: argparse.ArgumentParser) -> None:
+    engine = parser.add_argument_group("estimation and reconstruction (the node's parameters)")
+    engine.add_argument(
+        "--window-s",
+        type=positive_float,
+        default=WINDOW_S,
+        help=f"estimation window, s (default {WINDOW_S:g})",
+    )
+    engine.add_argument(
+        "--update-period-s",
+        type=positive_float,
+        default=0.5,
+        help="re-estimation period in stamp time, s (default 0.5)",
+    )
+    engine.add_argument(
+        "--batch-s",
+        type=positive_float,
+        default=0.1,
+        help="pairs go to the compensator in batches of this much stamp "
+        "time, s (default 0.1; keep it a divisor of --update-period-s)",
+    )
+    engine.add_argument(
+        "--method", choices=METHODS, default=METHOD, help=f"estimator (default {METHOD})"
+    )
+    engine.add_argument(
+        "--phi",
+        type=positive_float,
+        default=PHI,
+        help="noise variance ratio sigma1^2/sigma2^2 (default 1)",
+    )
+    engine.add_argument(
+        "--prefilter-hz",
+        type=non_negative_float,
+        default=0.0,
+        help="zero-phase pre-filter of the window, Hz (default 0 = off)",
+    )
+    engine.add_argument(
+        "--postfilter-hz",
+        type=non_negative_float,
+        default=0.0,
+        help="causal low-pass on the gas temperature, Hz (default 0 = off)",
+    )
+    engine.add_argument(
+        "--reconstruction",
+        choices=RECONSTRUCTIONS,
+        default="difference",
+        help="Eq. (7) ('difference', default) or the causal Kalman filter",
+    )
+    engine.add_argument(
+        "--reconstruct-from",
+        choices=RECONSTRUCT_FROM,
+        default="fused",
+        help="which Eq. (7) reconstruction (default fused)",
+    )
+    engine.add_argument(
+        "--sample-period-s",
+        type=non_negative_float,
+        default=0.0,
+        help="sample period, s (default 0 = learn it from the stamps)",
+    )
+
+
+def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    out = parser.add_argument_group("output")
+    out.add_argument(
+        "--no-diagnose",
+        action="store_true",
+        help="skip the diagnosis (it takes seconds to a minute)",
+    )
+    out.add_argument(
+        "--diagnose-samples",
+        type=int,
+        default=20_000,
+        help="the diagnosis sees the last this many pairs (default 20000)",
+    )
+    out.add_argument(
+        "--compress",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="zstd-compress the bag's chunks (default; about a third of the size, and faster to "
+        "write); --no-compress writes them plain, as ros2 bag record does",
+    )
+    out.add_argument(
+        "--csv",
+        action="store_true",
+        help="with a directory of inputs: write CSV files instead of bags",
+    )
+    out.add_argument(
+        "--frame-id", default="", help="frame_id of gas_temperature (default: that of tc1)"
+    )
+    add_force_argument(out, "replace existing outputs")
+    out.add_argument(
+        "--jobs", type=int, default=1, help="inputs processed in parallel processes (default 1)"
+    )
+
+
+def process_config(args: argparse.Namespace) -> ProcessConfig:
+    """The :class:`~tcomp_core.process.ProcessConfig` the parsed options describe.
+
+    Raises
+    ------
+    TcompError
+        On a wrong number of ``--topics`` or ``--columns``; ``ValueError`` from the configs
+        on a value they refuse.
+    """
+    from ..online import OnlineConfig
+    from ..process import ProcessConfig
+
+    online = OnlineConfig(
+        window_s=args.window_s,
+        method=args.method,
+        phi=args.phi,
+        prefilter_hz=args.prefilter_hz,
+        postfilter_hz=args.postfilter_hz,
+        reconstruction=args.reconstruction,
+        reconstruct_from=args.reconstruct_from,
+        sample_period_s=args.sample_period_s,
+    )
+    return ProcessConfig(
+        online=online,
+        update_period_s=args.update_period_s,
+        batch_s=args.batch_s,
+        topics=source_names(args.topics, "topics") or DEFAULT_TOPICS,
+        columns=source_names(args.columns, "columns") or DEFAULT_COLUMNS,
+        diagnose=not args.no_diagnose,
+        diagnose_samples=args.diagnose_samples,
+        compress=args.compress,
+        overwrite=args.force,
+        frame_id=args.frame_id,
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Process one input, or a directory of them ``--jobs`` at a time; print the summary.
+
+    Returns
+    -------
+    int
+        0, or 1 if any input of a directory failed.
+
+    Raises
+    ------
+    TcompError
+        On a bad option or a single input that fails.
+    """
+    from ..io import is_bag_directory, is_csv
+    from ..process import find_inputs, format_summary, process_many, process_one
+
+    if args.jobs < 1:
+        raise TcompError(f"--jobs {args.jobs} must be >= 1")
+    config = process_config(args)
+    data: Path = args.data
+    batch = data.is_dir() and not is_bag_directory(data)
+    if batch:
+        if is_csv(args.output):
+            raise TcompError(f"{args.output}: a directory of inputs needs an output directory")
+        outcomes = process_many(
+            find_inputs(data),
+            args.output,
+            config,
+            jobs=args.jobs,
+            suffix=".csv" if args.csv else "",
+        )
+    else:
+        outcome = process_one(data, args.output, config, True)
+        if outcome.result is None:
+            raise TcompError(outcome.error)
+        outcomes = [outcome]
+    for outcome in outcomes:
+        if outcome.result is not None:
+            for warning in outcome.result.warnings:
+                print(f"tcomp process: warning: {warning}", file=sys.stderr)
+            print(f"wrote {outcome.output}")
+    print(format_summary(outcomes))
+    return 1 if any(o.result is None for o in outcomes) else 0

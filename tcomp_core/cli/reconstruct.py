@@ -1,0 +1,201 @@
+"""``tcomp reconstruct``: the gas temperature by Eq. (7) or a Kalman smoother (or filter)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..choices import BATCH_RECONSTRUCTIONS, COMBINATIONS, MODELS
+from ..errors import TcompError
+from .common import (
+    Verbs,
+    add_data_arguments,
+    add_estimator_arguments,
+    add_force_argument,
+    add_output_argument,
+    estimate_with,
+    positive_float,
+    read_data,
+)
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from ..io import Record
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
+    """Add ``reconstruct`` to the sub-commands of ``tcomp``; returns its parser."""
+    parser = verbs.add_parser(
+        "reconstruct",
+        help="reconstruct the gas temperature (Eq. 7 or a Kalman smoother)",
+        description="Estimate tau1, tau2 (or take them as given) and reconstruct the gas "
+        "temperature from both thermocouples: through the difference equation (Eq. 7), or "
+        "by a Kalman smoother (or causal filter) of both sensors whose gas temperature model "
+        "and settings are fitted to the data by maximum likelihood.",
+    )
+    add_data_arguments(parser)
+    add_estimator_arguments(parser)
+    add_output_argument(parser, "*.csv or an MCAP bag directory")
+    parser.add_argument("--tau1", type=positive_float, help="use this tau1 (s), skip estimation")
+    parser.add_argument("--tau2", type=positive_float, help="use this tau2 (s), skip estimation")
+    parser.add_argument(
+        "--postfilter-hz", type=positive_float, help="5th-order zero-phase post-filter, Hz"
+    )
+    parser.add_argument(
+        "--combine",
+        choices=COMBINATIONS,
+        default="inverse-variance",
+        help="how the two reconstructions are combined (default inverse-variance)",
+    )
+    parser.add_argument(
+        "--reconstruction",
+        choices=BATCH_RECONSTRUCTIONS,
+        default="difference",
+        help="difference: Eq. (7) (default); kalman: RTS smoother of both sensors; "
+        "kalman-causal: the forward filter alone, as the node runs it",
+    )
+    parser.add_argument(
+        "--signal-model",
+        choices=["auto", *MODELS],
+        default="auto",
+        help="gas temperature model of the Kalman reconstructions (default auto: the most "
+        "likely, penalised by its number of settings)",
+    )
+    parser.add_argument("--png", type=Path, help="also plot the reconstruction to this PNG")
+    add_force_argument(parser, "overwrite an existing output")
+    parser.set_defaults(handler=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    """Estimate τ1, τ2 unless given, reconstruct, write ``--output`` (and ``--png``).
+
+    Raises
+    ------
+    TcompError
+        If only one of ``--tau1``/``--tau2`` is given, or a Kalman reconstruction is asked
+        for with options of the difference equation.
+    """
+    record = read_data(args)
+    if (args.tau1 is None) != (args.tau2 is None):
+        raise TcompError("give both --tau1 and --tau2, or neither to estimate them")
+    if args.tau1 is None:
+        result = estimate_with(record, args, args.method)
+        tau1, tau2 = result.tau1, result.tau2
+        print(f"{args.method}: tau1 = {tau1:.6f} s, tau2 = {tau2:.6f} s")
+    else:
+        tau1, tau2 = args.tau1, args.tau2
+    if args.reconstruction != "difference":
+        return _run_kalman(record, args, tau1, tau2)
+    return _run_difference(record, args, tau1, tau2)
+
+
+def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
+    """``reconstruct --reconstruction difference``: Eq. (7) and the combination."""
+    from ..estimators.mleiv import phi_from_data
+    from ..metrics import reconstruction_error_percent
+    from ..reconstruct import reconstruct
+
+    recon = reconstruct(
+        record.tc1,
+        record.tc2,
+        record.dt,
+        tau1,
+        tau2,
+        phi=args.phi if args.phi is not None else phi_from_data(record.tc1, record.tc2, record.dt),
+        combine=args.combine,
+        postfilter_hz=args.postfilter_hz,
+        time=record.time,
+    )
+    count = recon.gas.size
+    written, ref = _write_gas(args, record, recon.gas)
+    print(
+        f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples "
+        f"(the last sample has no successor to reconstruct from), weight of tc1 "
+        f"{recon.weight1:.3f}"
+    )
+    if ref is not None:
+        for label, values in (("tc1", recon.gas1), ("tc2", recon.gas2), ("combined", recon.gas)):
+            error = reconstruction_error_percent(ref, values)
+            print(f"e_Tg ({label}) = {error:.2f} % against the ref signal")
+    if args.png:
+        _plot(args, record, recon.gas, ref)
+    return 0
+
+
+def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
+    """``reconstruct --reconstruction kalman[-causal]``."""
+    import numpy as np
+
+    from ..fusion import fit_fusion_model, fuse
+    from ..metrics import reconstruction_error_percent
+
+    if args.postfilter_hz is not None or args.combine != "inverse-variance":
+        raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
+    model, _, _ = fit_fusion_model(
+        record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model
+    )
+    causal = args.reconstruction == "kalman-causal"
+    fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=model, causal=causal)
+    settings = f"q = {model.q:.4g}"
+    if model.kind in ("band-limited", "periodic"):
+        settings += f", {model.freq_hz:.4g} Hz, level q = {model.level_q:.4g}"
+    print(
+        f"{args.reconstruction}: signal model {model.kind} ({settings}), noise sigma1 = "
+        f"{model.sigma1:.4g}, sigma2 = {model.sigma2:.4g} degC, log-likelihood "
+        f"{fused.log_likelihood:.1f}; median std of the estimate {np.median(fused.std):.4g} degC"
+    )
+    # The last element is a prediction no sample observes: leave it out as Eq. (7) does.
+    count = record.tc1.size - 1
+    gas = fused.gas[:count]
+    written, ref = _write_gas(args, record, gas)
+    print(f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples")
+    if ref is not None:
+        error = reconstruction_error_percent(ref, gas)
+        print(f"e_Tg ({args.reconstruction}) = {error:.2f} % against the ref signal")
+    if args.png:
+        _plot(args, record, gas, ref)
+    return 0
+
+
+def _write_gas(
+    args: argparse.Namespace, record: Record, gas: NDArray[np.float64]
+) -> tuple[Path, NDArray[np.float64] | None]:
+    """Write the record's first ``gas.size`` samples with ``gas`` to ``--output``.
+
+    Returns the path written and the matching part of the reference (None without one).
+    """
+    from ..io import write_series
+
+    count = gas.size
+    ref = None if record.ref is None else record.ref[:count]
+    written = write_series(
+        args.output,
+        record.time[:count],
+        record.tc1[:count],
+        record.tc2[:count],
+        ref,
+        gas=gas,
+        overwrite=args.force,
+        inputs=record,
+    )
+    return written, ref
+
+
+def _plot(
+    args: argparse.Namespace,
+    record: Record,
+    gas: NDArray[np.float64],
+    ref: NDArray[np.float64] | None,
+) -> None:
+    from ..plots import plot_reconstruction
+
+    series = {"tc1": record.tc1, "tc2": record.tc2, "gas (reconstructed)": gas}
+    if ref is not None:
+        series["ref"] = ref
+    print(f"wrote {plot_reconstruction(record.time, series, args.png, str(args.data))}")

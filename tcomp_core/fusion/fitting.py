@@ -1,0 +1,326 @@
+"""Choice of the signal model and its hyper-parameters by maximum likelihood.
+
+Hyper-parameters are chosen by maximising the likelihood of the Kalman innovations
+(:mod:`scipy.optimize` on their logarithms), and the model by that likelihood less its number
+of hyper-parameters (Akaike). The noise levels σ_i come from the spectra
+(:func:`tcomp_core.noise.estimate_noise`) unless given.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.optimize
+from numpy.typing import ArrayLike, NDArray
+
+from ..models import tau_to_pole
+from ..noise import estimate_noise
+from ..reconstruct import Reconstruction, reconstruct
+from ..validation import check_pair, check_sample_interval
+from .kalman import innovation_log_likelihood
+from .signal_model import MODELS, FusionModel, ModelChoice, ModelKind, butterworth_unit_variance
+
+__all__ = ["fit_fusion_model"]
+
+#: Smallest noise standard deviation used, as a fraction of the signal's standard deviation:
+#: keeps the Riccati equation well posed on noise-free data.
+MIN_RELATIVE_SIGMA = 1e-6
+#: Search range of log10(q / q_ref) (q_ref = gas variance / dt^order, order 1 or 3), and of
+#: the level's intensity likewise.
+LOG10_Q_RANGE = (-14.0, 6.0)
+#: Search range of log10 of a stationary signal variance relative to the data's.
+VARIANCE_RANGE = (-8.0, 4.0)
+#: Starting value of log10(q dt / gas variance) of the periodic model's resonator.
+PERIODIC_START = -6.0
+#: Starting value of log10(level_q dt / gas variance).
+LEVEL_START = -10.0
+#: Initial simplex edge of the Nelder–Mead searches, in log10 units.
+SIMPLEX_STEP = 0.3
+#: Cost reported to the optimisers where the likelihood cannot be evaluated.
+FAILED_COST = 1e15
+#: Half-width of the maximum-likelihood frequency search around the spectral line, in
+#: periodogram bins (the least-squares line frequency is much closer than that).
+FREQUENCY_SPAN = 0.02
+#: Butterworth orders of the band-limited model tried by the maximum-likelihood fit.
+BAND_LIMITED_ORDERS = (2, 4)
+#: Search range of the band-limited model's cut-off as a fraction of the Nyquist frequency.
+CUTOFF_RANGE = (1e-3, 0.9)
+
+
+def _dominant_frequency(
+    first: NDArray[np.float64], second: NDArray[np.float64], base: FusionModel
+) -> float:
+    """Frequency of the strongest spectral line relative to the noise floor, Hz.
+
+    The Hann-windowed periodograms' signal-to-noise ratios of the two sensors are summed; the
+    peak bin is refined to the frequency of the least-squares sinusoid fitted to the Eq. (7)
+    reconstruction (which, unlike the readings, carries no start-up transient of the sensors),
+    as a narrow resonator needs it to a small fraction of a bin.
+    """
+    count = first.size
+    freqs = np.fft.rfftfreq(count, base.dt)
+    window = np.hanning(count)
+    excess = np.zeros(freqs.size)
+    for values, sigma in ((first, base.sigma1), (second, base.sigma2)):
+        power = np.abs(np.fft.rfft((values - values.mean()) * window)) ** 2
+        excess += power / (sigma**2 * np.sum(window**2))
+    excess[0] = 0.0
+    peak = max(int(np.argmax(excess[: freqs.size - 1])), 1)
+    gas = _reconstruction(first, second, base).gas
+    time = np.arange(gas.size) * base.dt
+    best = scipy.optimize.minimize_scalar(
+        lambda frequency: _sinusoid_residual(gas, time, frequency),
+        bounds=(freqs[peak - 1], freqs[peak + 1]),
+        method="bounded",
+        options={"xatol": 1e-7 * freqs[1]},
+    )
+    return float(best.x)
+
+
+def _sinusoid_residual(values: NDArray[np.float64], time: NDArray, frequency: float) -> float:
+    """Residual sum of squares of ``values`` about a least-squares sinusoid at ``frequency``."""
+    phase = 2.0 * np.pi * frequency * time
+    basis = np.stack((np.ones_like(time), np.cos(phase), np.sin(phase)))
+    normal = np.einsum("ik,jk->ij", basis, basis)
+    projection = np.einsum("ik,k->i", basis, values)
+    coefficients = np.linalg.solve(normal, projection)
+    return float(values @ values - coefficients @ projection)
+
+
+#: Logarithms (base 10) of a model's hyper-parameters, as the optimisers vary them.
+Theta = Sequence[float] | NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class _Fitting:
+    """Data and scales shared by the maximum-likelihood fits of one record.
+
+    Attributes
+    ----------
+    base : FusionModel
+        Carries dt, τ and σ.
+    y : ndarray, shape (2, N)
+        Readings less their mean level, degrees C.
+    scale : float
+        Gas temperature variance estimated from the Eq. (7) reconstruction less its noise, °C².
+    freq_hz : float
+        Strongest spectral line, Hz.
+    """
+
+    base: FusionModel
+    y: NDArray[np.float64]
+    scale: float
+    freq_hz: float
+
+    def cost(self, model: FusionModel) -> float:
+        """Negative log-likelihood, nats (finite, for the optimisers)."""
+        return min(-innovation_log_likelihood(model, self.y), FAILED_COST)
+
+
+def _random_walk_model(fit: _Fitting, kind: ModelKind, theta: Theta) -> FusionModel:
+    """θ = log10(q dt^order / scale)."""
+    order = 3 if kind == "integrated-random-walk" else 1
+    return replace(fit.base, kind=kind, q=float(fit.scale / fit.base.dt**order * 10.0 ** theta[0]))
+
+
+def _band_limited_model(fit: _Fitting, theta: Theta, order: int = 2) -> FusionModel:
+    """θ = log10 of (variance / scale, cut-off / Nyquist frequency, level_q dt / scale)."""
+    cutoff = 0.5 / fit.base.dt * 10.0 ** theta[1]
+    unit = butterworth_unit_variance(order, 2.0 * math.pi * cutoff)
+    return replace(
+        fit.base,
+        kind="band-limited",
+        q=float(fit.scale * 10.0 ** theta[0] / unit),
+        freq_hz=float(cutoff),
+        level_q=float(fit.scale / fit.base.dt * 10.0 ** theta[2]),
+        order=order,
+    )
+
+
+def _periodic_model(fit: _Fitting, theta: Theta) -> FusionModel:
+    """θ = log10 of (q dt / scale, level_q dt / scale)."""
+    return replace(
+        fit.base,
+        kind="periodic",
+        q=float(fit.scale / fit.base.dt * 10.0 ** theta[0]),
+        freq_hz=fit.freq_hz,
+        level_q=float(fit.scale / fit.base.dt * 10.0 ** theta[1]),
+    )
+
+
+def _fit_random_walk(fit: _Fitting, kind: ModelKind) -> FusionModel:
+    """Brent's method on log10 q."""
+    best = scipy.optimize.minimize_scalar(
+        lambda t: fit.cost(_random_walk_model(fit, kind, [t])),
+        bounds=LOG10_Q_RANGE,
+        method="bounded",
+        options={"xatol": 1e-3},
+    )
+    return _random_walk_model(fit, kind, [best.x])
+
+
+def _polish(
+    fit: _Fitting,
+    build: Callable[[_Fitting, Theta], FusionModel],
+    start: NDArray[np.float64],
+    bounds: list[tuple[float, float]],
+) -> FusionModel:
+    """Nelder–Mead on the log10 hyper-parameters from ``start``.
+
+    The tolerances (0.1 in log10, 0.05 nats) are far below what changes the estimate.
+    """
+
+    def cost(theta: NDArray[np.float64]) -> float:
+        return fit.cost(build(fit, theta))
+
+    simplex = np.vstack((start, start + SIMPLEX_STEP * np.eye(start.size)))
+    best = scipy.optimize.minimize(
+        cost,
+        start,
+        method="Nelder-Mead",
+        bounds=bounds,
+        options={"xatol": 0.1, "fatol": 0.05, "initial_simplex": simplex, "maxfev": 150},
+    )
+    return build(fit, best.x)
+
+
+def _fit_band_limited(fit: _Fitting) -> FusionModel:
+    """Each order of :data:`BAND_LIMITED_ORDERS` fitted; the likelier kept."""
+    return min((_fit_butterworth(fit, order) for order in BAND_LIMITED_ORDERS), key=fit.cost)
+
+
+def _fit_butterworth(fit: _Fitting, order: int) -> FusionModel:
+    """Scan of the cut-off at the data's variance, then all three settings polished."""
+
+    def build(fitting: _Fitting, theta: Theta) -> FusionModel:
+        return _band_limited_model(fitting, theta, order)
+
+    low, high = (math.log10(limit) for limit in CUTOFF_RANGE)
+    cutoffs = np.linspace(low, high, 10)
+    costs = [fit.cost(build(fit, [0.0, c, LEVEL_START])) for c in cutoffs]
+    start = np.array([0.0, cutoffs[int(np.argmin(costs))], LEVEL_START])
+    bounds = [VARIANCE_RANGE, (low, high), LOG10_Q_RANGE]
+    return _polish(fit, build, start, bounds)
+
+
+def _fit_periodic(fit: _Fitting) -> FusionModel:
+    """Maximum-likelihood settings of the periodic model.
+
+    Drive and level intensities by Nelder–Mead, then the frequency refined by Brent's method
+    within a few hundredths of a periodogram bin.
+    """
+    start = np.array([PERIODIC_START, LEVEL_START])
+    bounds = [LOG10_Q_RANGE, LOG10_Q_RANGE]
+    model = _polish(fit, _periodic_model, start, bounds)
+    span = FREQUENCY_SPAN / (fit.y.shape[1] * fit.base.dt)
+    best = scipy.optimize.minimize_scalar(
+        lambda frequency: fit.cost(replace(model, freq_hz=frequency)),
+        bounds=(model.freq_hz - span, model.freq_hz + span),
+        method="bounded",
+        options={"xatol": 1e-4 * span},
+    )
+    return replace(model, freq_hz=float(best.x))
+
+
+def _fit_kind(fit: _Fitting, kind: ModelKind) -> FusionModel:
+    if kind == "band-limited":
+        return _fit_band_limited(fit)
+    if kind == "periodic":
+        return _fit_periodic(fit)
+    return _fit_random_walk(fit, kind)
+
+
+def _reconstruction(
+    first: NDArray[np.float64], second: NDArray[np.float64], base: FusionModel
+) -> Reconstruction:
+    """The paper's inverse-variance weighted Eq. (7) reconstruction (no post-filter)."""
+    phi = (base.sigma1 / base.sigma2) ** 2
+    return reconstruct(first, second, base.dt, base.tau1, base.tau2, phi=phi)
+
+
+def _gas_variance(
+    first: NDArray[np.float64], second: NDArray[np.float64], base: FusionModel
+) -> float:
+    """Variance of the gas temperature: the Eq. (7) reconstruction's less its noise, °C²."""
+    reconstruction = _reconstruction(first, second, base)
+    poles = tau_to_pole([base.tau1, base.tau2], base.dt)
+    noise = np.array([base.sigma1, base.sigma2]) ** 2 * (1.0 + poles**2) / (1.0 - poles) ** 2
+    weights = np.array([reconstruction.weight1, 1.0 - reconstruction.weight1])
+    total = float(np.var(reconstruction.gas))
+    return max(total - float(weights**2 @ noise), 1e-6 * total, 1e-12)
+
+
+def _noise_sigmas(
+    first: NDArray[np.float64],
+    second: NDArray[np.float64],
+    dt: float,
+    sigma1: float | None,
+    sigma2: float | None,
+) -> tuple[float, float]:
+    """Noise standard deviations, measured from the spectra unless given, with a floor."""
+    sigmas = []
+    for values, given in ((first, sigma1), (second, sigma2)):
+        sigma = estimate_noise(values, dt).sigma if given is None else float(given)
+        if not (math.isfinite(sigma) and sigma >= 0.0):
+            raise ValueError(f"noise standard deviation {sigma!r} must be finite and >= 0")
+        floor = MIN_RELATIVE_SIGMA * max(float(np.std(values)), 1e-9)
+        sigmas.append(max(sigma, floor))
+    return sigmas[0], sigmas[1]
+
+
+def fit_fusion_model(
+    tc1: ArrayLike,
+    tc2: ArrayLike,
+    dt: float,
+    tau1: float,
+    tau2: float,
+    *,
+    sigma1: float | None = None,
+    sigma2: float | None = None,
+    model: ModelChoice = "auto",
+) -> tuple[FusionModel, float, dict[str, float]]:
+    """Choose the signal model and its hyper-parameters by maximum likelihood.
+
+    Parameters
+    ----------
+    tc1, tc2 : array_like, shape (N,)
+        Thermocouple temperatures, degrees C.
+    dt : float
+        Sample interval, seconds.
+    tau1, tau2 : float
+        Time constants, seconds.
+    sigma1, sigma2 : float, optional
+        Noise standard deviations, degrees C; measured from the spectra when omitted.
+    model : {'auto', 'random-walk', 'integrated-random-walk', 'band-limited', 'periodic'}
+        Signal model; 'auto' fits them all and keeps the one with the highest log-likelihood
+        less its number of hyper-parameters (Akaike).
+
+    Returns
+    -------
+    model : FusionModel
+    log_likelihood : float
+        Of the chosen model, nats.
+    candidates : dict of str to float
+        Log-likelihood of every model fitted, nats.
+    """
+    first, second = check_pair(tc1, tc2)
+    dt = check_sample_interval(dt)
+    if model != "auto" and model not in MODELS:
+        raise ValueError(f"model={model!r} is not 'auto' or one of {', '.join(MODELS)}")
+    s1, s2 = _noise_sigmas(first, second, dt, sigma1, sigma2)
+    base = FusionModel(kind="random-walk", dt=dt, tau1=tau1, tau2=tau2, sigma1=s1, sigma2=s2, q=1)
+    level = float(np.mean(first))
+    fit = _Fitting(
+        base=base,
+        y=np.vstack((first - level, second - level)),
+        scale=_gas_variance(first, second, base),
+        freq_hz=_dominant_frequency(first, second, base),
+    )
+    kinds = MODELS if model == "auto" else tuple(kind for kind in MODELS if kind == model)
+    fitted = {kind: _fit_kind(fit, kind) for kind in kinds}
+    candidates: dict[str, float] = {kind: -fit.cost(value) for kind, value in fitted.items()}
+    best = max(kinds, key=lambda k: candidates[k] - fitted[k].n_hyperparameters)
+    return fitted[best], candidates[best], candidates

@@ -1,0 +1,123 @@
+"""Fusion of a whole record: the signal model fitted, then the smoother or the causal filter."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..validation import check_pair
+from .causal import CausalFuser
+from .fitting import fit_fusion_model
+from .signal_model import FusionModel, ModelChoice
+from .smoother import smoothed_gas
+
+__all__ = ["FusionResult", "fuse"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FusionResult:
+    """Gas temperature fused from two thermocouples.
+
+    Attributes
+    ----------
+    time : ndarray, shape (N,)
+        Start of the interval over which each gas sample holds, seconds.
+    gas : ndarray, shape (N,)
+        Estimated gas temperature, degrees C. Element N-1 is a one-step prediction.
+    std : ndarray, shape (N,)
+        Standard deviation of each estimate under the model, degrees C.
+    model : FusionModel
+        The model used, with its hyper-parameters.
+    log_likelihood : float
+        Log-likelihood of the innovations under ``model``, nats.
+    candidates : dict of str to float
+        Log-likelihood of each signal model fitted (empty when the model was given).
+    causal : bool
+        Whether ``gas`` comes from the forward (causal) filter rather than the smoother.
+    """
+
+    time: NDArray[np.float64]
+    gas: NDArray[np.float64]
+    std: NDArray[np.float64]
+    model: FusionModel
+    log_likelihood: float
+    candidates: dict[str, float] = field(default_factory=dict)
+    causal: bool = False
+
+    @property
+    def kind(self) -> str:
+        """Signal model used."""
+        return self.model.kind
+
+    @property
+    def q(self) -> float:
+        """Process noise intensity of the model (see :class:`FusionModel`)."""
+        return self.model.q
+
+
+def fuse(
+    tc1: ArrayLike,
+    tc2: ArrayLike,
+    dt: float,
+    tau1: float,
+    tau2: float,
+    *,
+    sigma1: float | None = None,
+    sigma2: float | None = None,
+    model: ModelChoice | FusionModel = "auto",
+    causal: bool = False,
+) -> FusionResult:
+    """Fused gas temperature from both thermocouples: RTS smoother or causal Kalman filter.
+
+    Parameters
+    ----------
+    tc1, tc2 : array_like, shape (N,)
+        Thermocouple temperatures, degrees C, sampled every ``dt``.
+    dt : float
+        Sample interval, seconds.
+    tau1, tau2 : float
+        Time constants, seconds.
+    sigma1, sigma2 : float, optional
+        Noise standard deviations, degrees C; measured from the spectra when omitted.
+    model : str or FusionModel
+        'auto' or a signal model name, fitted by maximum likelihood
+        (:func:`fit_fusion_model`), or a :class:`FusionModel` used as it is (its dt, τ and σ
+        then replace the arguments).
+    causal : bool
+        Run the forward Kalman filter only: element k then depends on samples 0..k+1 alone,
+        once the model is fixed. With a model name the hyper-parameters are still fitted on
+        the whole record; pass a :class:`FusionModel` for a strictly causal run.
+
+    Returns
+    -------
+    FusionResult
+        Gas estimate and its standard deviation, shape (N,); element k is the gas temperature
+        over ``[t_k, t_{k+1})``.
+    """
+    first, second = check_pair(tc1, tc2)
+    candidates: dict[str, float] = {}
+    if isinstance(model, FusionModel):
+        fitted = model
+    else:
+        fitted, _, candidates = fit_fusion_model(
+            first, second, dt, tau1, tau2, sigma1=sigma1, sigma2=sigma2, model=model
+        )
+    if causal:
+        fuser = CausalFuser(fitted)
+        gas, std = fuser.extend(first, second)
+        ahead, ahead_std = fuser.predict()
+        gas, std = np.append(gas, ahead), np.append(std, ahead_std)
+        log_likelihood = fuser.log_likelihood
+    else:
+        gas, std, log_likelihood = smoothed_gas(fitted, first, second)
+    return FusionResult(
+        time=np.arange(first.size, dtype=np.float64) * fitted.dt,
+        gas=gas,
+        std=std,
+        model=fitted,
+        log_likelihood=log_likelihood,
+        candidates=candidates,
+        causal=causal,
+    )

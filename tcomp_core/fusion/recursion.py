@@ -1,0 +1,116 @@
+"""Linear recursions over long records without a Python loop over samples.
+
+``x_j = A x_{j-1} + u_j`` is solved in the Schur basis of A as first-order
+:func:`scipy.signal.lfilter` calls; matrix powers come from the eigendecomposition when it is
+well conditioned. These are the workhorses of the steady-state Kalman filter and RTS smoother.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+from scipy import signal
+
+__all__ = [
+    "MAX_EIGENVECTOR_CONDITION",
+    "apply_matrix",
+    "decay_horizon",
+    "linear_recursion",
+    "matrix_powers",
+]
+
+#: Largest condition number of the eigenvectors for which matrix powers come from them.
+MAX_EIGENVECTOR_CONDITION = 1e8
+
+
+def apply_matrix(matrix: NDArray, array: NDArray) -> NDArray:
+    """``matrix`` (a, b) applied along the first axis of ``array`` (b, ...) → (a, ...).
+
+    Written as elementwise sums (einsum for real data) rather than a matrix product: BLAS
+    spreads products with long arrays over threads, which on a loaded machine made these
+    small-by-long products ten times slower.
+    """
+    if not (np.iscomplexobj(matrix) or np.iscomplexobj(array)):
+        return np.einsum("ij,j...->i...", matrix, array)
+    real = np.einsum("ij,j...->i...", matrix.real, array.real)
+    imaginary = np.einsum("ij,j...->i...", matrix.imag, array.real)
+    if np.iscomplexobj(array):
+        real -= np.einsum("ij,j...->i...", matrix.imag, array.imag)
+        imaginary += np.einsum("ij,j...->i...", matrix.real, array.imag)
+    return real + 1j * imaginary
+
+
+def linear_recursion(
+    matrix: NDArray[np.float64], inputs: NDArray[np.float64], initial: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Run ``x_j = A x_{j-1} + u_j`` for j = 1..M without a Python loop over samples.
+
+    In the Schur basis ``A = U T Uᴴ`` (T upper triangular, U unitary) each component is a
+    first-order recursion driven by the inputs and by the components after it, solved by
+    :func:`scipy.signal.lfilter` from the last component back to the first.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (n, n)
+        A; a bounded result needs its eigenvalues inside the unit circle.
+    inputs : ndarray, shape (n, M, m)
+        u_1..u_M, component first, for m independent columns propagated together.
+    initial : ndarray, shape (n, m)
+        x_0.
+
+    Returns
+    -------
+    ndarray, shape (n, M, m)
+        x_1..x_M.
+    """
+    upper, basis = scipy.linalg.schur(matrix, output="complex")
+    n = matrix.shape[0]
+    drive = apply_matrix(basis.conj().T, inputs)
+    start = basis.conj().T @ initial
+    states = np.empty_like(drive)
+    delayed = np.empty_like(drive)  # z_j[k-1], filled as components are solved
+    for i in range(n - 1, -1, -1):
+        forcing = drive[i]
+        for j in range(i + 1, n):
+            if upper[i, j] != 0.0:
+                forcing = forcing + upper[i, j] * delayed[j]
+        pole = upper[i, i]
+        states[i], _ = signal.lfilter(
+            [1.0], [1.0, -pole], forcing, axis=0, zi=pole * start[i : i + 1]
+        )
+        delayed[i, 0] = start[i]
+        delayed[i, 1:] = states[i, :-1]
+    return apply_matrix(basis, states).real
+
+
+def matrix_powers(
+    matrix: NDArray[np.float64], count: int, rows: slice = slice(None)
+) -> NDArray[np.float64]:
+    """``(matrix**k)[rows]`` for k = 0..count-1 as an array (r, count, n).
+
+    From the eigendecomposition ``A = V Λ V⁻¹`` when V is well conditioned (a few elementwise
+    products), else by running the recursion on the identity.
+    """
+    n = matrix.shape[0]
+    eigenvalues, vectors = np.linalg.eig(matrix)
+    if np.linalg.cond(vectors) > MAX_EIGENVECTOR_CONDITION:
+        powers = linear_recursion(matrix, np.zeros((n, count - 1, n)), np.eye(n))
+        return np.concatenate((np.eye(n)[:, None], powers), axis=1)[rows]
+    inverse = np.linalg.inv(vectors)
+    steps = eigenvalues[:, None] ** np.arange(count)  # (n, count)
+    left = vectors[rows]
+    powers = np.zeros((left.shape[0], count, n), dtype=np.complex128)
+    for i in range(n):
+        powers += left[:, i, None, None] * steps[i, None, :, None] * inverse[i, None, None, :]
+    return powers.real
+
+
+def decay_horizon(matrix: NDArray[np.float64], count: int) -> int:
+    """Samples after which ``matrix**k`` has decayed below 1e-13 (at most ``count``)."""
+    radius = float(np.max(np.abs(np.linalg.eigvals(matrix))))
+    if radius >= 1.0 - 1e-12:
+        return count
+    return int(min(count, math.ceil(math.log(1e-13) / math.log(max(radius, 1e-300))) + 1))

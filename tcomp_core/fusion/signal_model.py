@@ -1,0 +1,225 @@
+"""Signal models of the gas temperature and the augmented state-space model of both sensors.
+
+Each signal model is a continuous-time linear system driven by white noise (random walk,
+integrated random walk, Butterworth band-limited process, wandering periodic line), discretised
+exactly (Van Loan) and augmented with the two first-order sensors (Eqs. 4–6 of the paper):
+``s_k = [x_{k-1}, T_1(k), T_2(k)]``. See :mod:`tcomp_core.fusion` for the equations.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+from numpy.typing import NDArray
+
+from ..choices import MODELS, ModelChoice, ModelKind
+from ..models import tau_to_pole
+from ..validation import check_sample_interval
+
+__all__ = [
+    "DIFFUSE_STD",
+    "MODELS",
+    "FusionModel",
+    "ModelChoice",
+    "ModelKind",
+    "StateSpace",
+    "butterworth_dynamics",
+    "butterworth_unit_variance",
+]
+
+#: Prior standard deviation of the gas (or level) state in the causal filter, degrees C.
+DIFFUSE_STD = 1e3
+
+
+@dataclass(frozen=True, kw_only=True)
+class FusionModel:
+    """A fully specified state-space model of the gas temperature and the two sensors.
+
+    Attributes
+    ----------
+    kind : {'random-walk', 'integrated-random-walk', 'band-limited', 'periodic'}
+        Signal model of the gas temperature (module docstring).
+    dt : float
+        Sample interval, seconds.
+    tau1, tau2 : float
+        Time constants of the two sensors, seconds.
+    sigma1, sigma2 : float
+        White measurement noise standard deviations, degrees C.
+    q : float
+        Process noise intensity: °C²/s (random walk, band-limited, periodic), °C²/s³
+        (integrated random walk).
+    freq_hz : float
+        Resonator frequency (periodic) or low-pass cut-off (band-limited), Hz.
+    level_q : float
+        Random-walk intensity of the level, °C²/s (periodic and band-limited).
+    order : int
+        Butterworth order of the band-limited model's low-pass, 1 to 8.
+    """
+
+    kind: ModelKind
+    dt: float
+    tau1: float
+    tau2: float
+    sigma1: float
+    sigma2: float
+    q: float
+    freq_hz: float = 0.0
+    level_q: float = 0.0
+    order: int = 2
+
+    def __post_init__(self) -> None:
+        if self.kind not in MODELS:
+            raise ValueError(f"kind={self.kind!r} is not one of {', '.join(MODELS)}")
+        check_sample_interval(self.dt)
+        for name in self._positive_fields():
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}={value!r} must be finite and > 0")
+        if self.freq_hz >= 0.5 / self.dt:
+            raise ValueError(f"freq_hz={self.freq_hz!r} must lie below the Nyquist frequency")
+        if self.order not in range(1, 9):
+            raise ValueError(f"order={self.order!r} must be an integer from 1 to 8")
+
+    def _positive_fields(self) -> tuple[str, ...]:
+        names = ("tau1", "tau2", "sigma1", "sigma2", "q")
+        if self.kind in ("band-limited", "periodic"):
+            return (*names, "freq_hz", "level_q")
+        return names
+
+    @property
+    def n_hyperparameters(self) -> int:
+        """Number of hyper-parameters fitted by maximum likelihood."""
+        return 3 if self.kind in ("band-limited", "periodic") else 1
+
+    def continuous_signal(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray]:
+        """Continuous-time signal model ``dx/dt = A x + w``, ``g = c · x``.
+
+        Returns
+        -------
+        dynamics : ndarray, shape (m, m)
+            A, 1/s.
+        intensity : ndarray, shape (m, m)
+            Spectral density of w (units of x squared per second).
+        output : ndarray, shape (m,)
+            c.
+        prior_std : ndarray, shape (m,)
+            Standard deviation of a diffuse prior on x (the causal filter's start).
+        """
+        if self.kind == "random-walk":
+            return np.zeros((1, 1)), np.full((1, 1), self.q), np.ones(1), np.full(1, DIFFUSE_STD)
+        if self.kind == "integrated-random-walk":
+            dynamics = np.array([[0.0, 1.0], [0.0, 0.0]])
+            prior = np.array([DIFFUSE_STD, DIFFUSE_STD / self.tau1])
+            return dynamics, np.diag([0.0, self.q]), np.array([1.0, 0.0]), prior
+        omega = 2.0 * math.pi * self.freq_hz
+        if self.kind == "band-limited":
+            block = butterworth_dynamics(self.order, omega)
+            noise = np.zeros((self.order, self.order))
+            noise[-1, -1] = self.q
+            output = np.concatenate(([1.0, 1.0], np.zeros(self.order - 1)))
+            prior = np.full(self.order + 1, DIFFUSE_STD)
+        else:
+            block = np.array([[0.0, -omega], [omega, 0.0]])
+            noise = np.diag([self.q, self.q])
+            output = np.array([1.0, 1.0, 0.0])
+            prior = np.full(3, DIFFUSE_STD)
+        dynamics = scipy.linalg.block_diag(np.zeros((1, 1)), block)
+        return dynamics, scipy.linalg.block_diag(np.array([[self.level_q]]), noise), output, prior
+
+    def state_space(self) -> StateSpace:
+        """The augmented discrete model ``s_k = [x_{k-1}, T_1(k), T_2(k)]`` (module docstring)."""
+        dynamics, intensity, c_s, prior = self.continuous_signal()
+        f_s, q_s = _van_loan(dynamics, intensity, self.dt)
+        m = c_s.size
+        poles = tau_to_pole([self.tau1, self.tau2], self.dt)
+        gains = 1.0 - poles
+        transition = np.zeros((m + 2, m + 2))
+        transition[:m, :m] = f_s
+        transition[m:, :m] = np.outer(gains, c_s @ f_s)
+        transition[m:, m:] = np.diag(poles)
+        loading = np.vstack((np.eye(m), np.outer(gains, c_s)))
+        observation = np.zeros((2, m + 2))
+        observation[:, m:] = np.eye(2)
+        sigmas = np.array([self.sigma1, self.sigma2])
+        return StateSpace(
+            transition=transition,
+            covariance=loading @ q_s @ loading.T,
+            observation=observation,
+            noise=np.diag(sigmas**2),
+            output=np.concatenate((c_s, np.zeros(2))),
+            prior_std=np.concatenate((prior, sigmas)),
+        )
+
+
+def butterworth_dynamics(order: int, omega: float) -> NDArray[np.float64]:
+    """State matrix of the Butterworth low-pass of ``order`` with cut-off ``omega`` (rad/s).
+
+    State: the output and its first ``order - 1`` derivatives, the j-th scaled by ``omega**-j``
+    so that all have the output's units and scale (a companion form in raw derivatives is
+    badly scaled); white noise drives the last.
+
+    Returns
+    -------
+    ndarray, shape (order, order)
+        1/s.
+    """
+    angles = np.pi / 2.0 + np.pi * (2.0 * np.arange(order) + 1.0) / (2.0 * order)
+    coefficients = np.real(np.poly(np.exp(1j * angles)))  # s^n + c_1 s^(n-1) + ..., ω = 1
+    dynamics = np.zeros((order, order))
+    dynamics[:-1, 1:] = np.eye(order - 1)
+    dynamics[-1] = -coefficients[:0:-1]
+    return omega * dynamics
+
+
+def butterworth_unit_variance(order: int, omega: float) -> float:
+    """Stationary variance of the Butterworth process's output per unit drive intensity."""
+    dynamics = butterworth_dynamics(order, omega)
+    drive = np.zeros((order, order))
+    drive[-1, -1] = 1.0
+    return float(scipy.linalg.solve_continuous_lyapunov(dynamics, -drive)[0, 0])
+
+
+def _van_loan(
+    dynamics: NDArray[np.float64], intensity: NDArray[np.float64], dt: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Exact discretisation: ``F = exp(A dt)``, ``Q = ∫₀^dt exp(A s) W exp(A s)ᵀ ds``."""
+    m = dynamics.shape[0]
+    block = np.zeros((2 * m, 2 * m))
+    block[:m, :m] = -dynamics
+    block[:m, m:] = intensity
+    block[m:, m:] = dynamics.T
+    exponential = scipy.linalg.expm(block * dt)
+    transition = exponential[m:, m:].T
+    covariance = transition @ exponential[:m, m:]
+    return transition, 0.5 * (covariance + covariance.T)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StateSpace:
+    """Matrices of the augmented discrete model (n states, 2 observations).
+
+    Attributes
+    ----------
+    transition : ndarray, shape (n, n)
+    covariance : ndarray, shape (n, n)
+        Process noise covariance per sample interval.
+    observation : ndarray, shape (2, n)
+    noise : ndarray, shape (2, 2)
+        Measurement noise covariance, °C².
+    output : ndarray, shape (n,)
+        Row giving the gas temperature of the previous interval from the state.
+    prior_std : ndarray, shape (n,)
+        Diffuse prior standard deviations of the state (causal start).
+    """
+
+    transition: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    observation: NDArray[np.float64]
+    noise: NDArray[np.float64]
+    output: NDArray[np.float64]
+    prior_std: NDArray[np.float64]

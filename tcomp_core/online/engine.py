@@ -1,0 +1,158 @@
+"""The online engine: pair matcher, compensator and health, composed once for node and ``process``.
+
+:class:`Engine` takes the samples of each input as they come (:meth:`Engine.add_samples`),
+pairs them (:class:`~.pairing.PairMatcher`), reconstructs the gas temperature of the new pairs
+(:meth:`Engine.reconstruct`, :class:`~.compensator.OnlineCompensator`), re-estimates τ on
+demand (:meth:`Engine.update_estimate`) and reports its health (:meth:`Engine.report`,
+:mod:`.health`). Every method that depends on time takes ``now`` in seconds: the compensator
+node passes its clock, ``tcomp process`` the stamp time (:mod:`.schedule`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from numpy.typing import ArrayLike
+
+from .compensator import OnlineCompensator
+from .config import EstimateStatus, OnlineConfig
+from .health import NO_DIAGNOSIS, NO_LATENCY, Health, HealthMonitor
+from .pairing import PairCounters, PairMatcher, Pairs
+from .reconstructors import GasBatch
+
+__all__ = ["DIAGNOSTICS_PERIOD_S", "Engine", "stale_after_s"]
+
+#: Period of the diagnostics, seconds (as diagnostic_updater's default); the node's timer and
+#: the offline schedule's report cadence.
+DIAGNOSTICS_PERIOD_S = 1.0
+
+
+def stale_after_s(update_period_s: float) -> float:
+    """Age (s) beyond which an accepted estimate is STALE: three updates and a report."""
+    return 3.0 * update_period_s + DIAGNOSTICS_PERIOD_S
+
+
+class Engine:
+    """Pairing, compensation and health of one thermocouple pair.
+
+    Parameters
+    ----------
+    config : OnlineConfig
+        The compensator's settings.
+    slop_ns : int
+        Largest stamp difference of a pair, ns (0 = exact stamps).
+    queue_size : int
+        Unmatched samples kept per input.
+    update_period_s : float
+        Re-estimation period, seconds (sets when an estimate is STALE).
+    silence_timeout_s : float
+        A sensor silent this long is an ERROR, seconds.
+    """
+
+    def __init__(
+        self,
+        config: OnlineConfig,
+        *,
+        slop_ns: int = 0,
+        queue_size: int = 2000,
+        update_period_s: float = 0.5,
+        silence_timeout_s: float = 1.0,
+    ) -> None:
+        self.compensator = OnlineCompensator(config)
+        self.matcher = PairMatcher(slop_ns=slop_ns, queue_size=queue_size)
+        self.monitor = HealthMonitor(silence_timeout_s, stale_after_s(update_period_s))
+        self._pairs: list[Pairs] = []
+        #: Gas samples reconstructed so far.
+        self.published = 0
+
+    @property
+    def counters(self) -> PairCounters:
+        """The pair matcher's counters."""
+        return self.matcher.counters
+
+    @property
+    def last_status(self) -> EstimateStatus | None:
+        """The latest re-estimation."""
+        return self.compensator.last_status
+
+    def set_matching(self, slop_ns: int, queue_size: int) -> None:
+        """A new pair matcher (its queues and counters start empty)."""
+        self.matcher = PairMatcher(slop_ns=slop_ns, queue_size=queue_size)
+
+    def set_timing(self, update_period_s: float, silence_timeout_s: float) -> None:
+        """New re-estimation period and silence timeout, seconds."""
+        self.monitor.stale_after_s = stale_after_s(update_period_s)
+        self.monitor.silence_timeout_s = silence_timeout_s
+
+    def add_samples(self, index: int, stamps_ns: ArrayLike, values: ArrayLike, now: float) -> None:
+        """Take samples of input ``index`` (0 = tc1, 1 = tc2) in arrival order, at ``now`` (s).
+
+        Parameters
+        ----------
+        index : int
+        stamps_ns : array_like of int, shape (n,)
+            Stamps, ns.
+        values : array_like of float, shape (n,)
+            Degrees C (non-finite ones are counted and dropped).
+        now : float
+            Seconds on the caller's clock.
+        """
+        received = self.matcher.counters.received[index]
+        pairs = self.matcher.add_batch(index, stamps_ns, values)
+        if len(pairs):
+            self._pairs.append(pairs)
+        if self.matcher.counters.received[index] > received:
+            self.monitor.heard(index, now)
+
+    def take_pairs(self) -> Pairs:
+        """The pairs matched since the last call (and hand them over to the caller)."""
+        pairs, self._pairs = Pairs.concatenate(self._pairs), []
+        return pairs
+
+    def reconstruct(self, pairs: Pairs | None = None) -> GasBatch:
+        """Reconstruct the pairs matched since the last call (or ``pairs``).
+
+        Raises
+        ------
+        DataError
+            When the compensator refuses the pairs (:meth:`OnlineCompensator.add_pairs`).
+        """
+        if pairs is None:
+            pairs = self.take_pairs()
+        out = self.compensator.add_pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2)
+        self.published += int(out.stamps_ns.size)
+        return out
+
+    def update_estimate(self, now: float) -> EstimateStatus:
+        """Re-estimate τ1, τ2 at ``now`` (seconds)."""
+        status = self.compensator.update_estimate()
+        self.monitor.estimated(status, now)
+        return status
+
+    def report(
+        self,
+        now: float,
+        extra: Mapping[str, str] = NO_DIAGNOSIS | NO_LATENCY,
+        *,
+        new_period: bool = True,
+    ) -> Health:
+        """The diagnostic status at ``now`` (seconds), by default starting a new report period.
+
+        Parameters
+        ----------
+        now : float
+            Seconds on the caller's clock.
+        extra : mapping of str to str
+            Key-values of the node's background diagnosis and latency (offline: none).
+        new_period : bool
+            Start a new report period (rates and invalid samples count from ``now``).
+        """
+        return self.monitor.report(
+            now,
+            engine=self.compensator,
+            counters=self.matcher.counters,
+            published=self.published,
+            max_model_error_pct=self.compensator.config.max_model_error_pct,
+            extra=extra,
+            new_period=new_period,
+        )

@@ -1,0 +1,270 @@
+"""Sliding-window estimation of τ1, τ2 for the online engine: window, tracker and status.
+
+The window keeps the β scatter matrix up to date in O(1) per sample
+(:class:`~tcomp_core.window.SlidingBetaWindow`); :meth:`WindowEstimator.estimate` solves it (β
+methods) or runs the batch estimator on the window's gap-free segments (γ, TDR, or when a
+pre-filter is set), and grades the result (:class:`~.config.EstimateStatus`): accepted when it is
+well conditioned, a poor fit when the model error beyond the noise floor exceeds the limit.
+With ``tracking_memory_s`` > 0 the τ comes from an exponentially forgetting β-GTLS with the
+ratio τ1/τ2 held to its long-term value (:class:`~tcomp_core.tracking.ForgettingEstimator`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import DataError, TcompError
+from ..estimators import Estimate, beta_noise_covariance, estimate
+from ..estimators.beta import estimate_beta_from_scatter
+from ..estimators.scatter import beta_scatter, solve_gtls
+from ..filters import prefilter
+from ..fit import fit_error_percent
+from ..tracking import ForgettingEstimator
+from ..validation import MIN_SAMPLES
+from ..window import BETA_METHODS, SlidingBetaWindow
+from .config import MIN_PREFILTER_SAMPLES, RATIO_MEMORY_FACTOR, EstimateStatus, OnlineConfig
+
+__all__ = ["WindowEstimator", "gap_free_runs"]
+
+
+class WindowEstimator:
+    """The estimation window (and tracker) of the online engine.
+
+    Parameters
+    ----------
+    config : OnlineConfig
+    period_s : float
+        Sample period of the pairs, seconds (> 0).
+    """
+
+    def __init__(self, config: OnlineConfig, period_s: float) -> None:
+        if not period_s > 0.0:
+            raise ValueError(f"{period_s=} must be > 0 s")
+        self._config = config
+        self._period = period_s
+        self._window = self._new_window()
+        self._tracker = self._new_tracker()
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def rows(self) -> int:
+        """Regression rows in the window (samples minus the links broken by gaps)."""
+        return self._window.rows
+
+    @property
+    def samples_held(self) -> int:
+        """Sample pairs in the window."""
+        return len(self._window)
+
+    @property
+    def capacity(self) -> int:
+        """Sample pairs the window holds at most."""
+        return self._window.capacity
+
+    def segments(self) -> list[NDArray[np.float64]]:
+        """The window's gap-free stretches, oldest first, each of shape (n, 2), degrees C."""
+        return np.split(self._window.samples, self._window.segment_starts)
+
+    def longest_segment(self) -> NDArray[np.float64]:
+        """The window's longest gap-free stretch, shape (n, 2): tc1, tc2 in degrees C."""
+        return max(self.segments(), key=len)
+
+    def reconfigure(self, config: OnlineConfig, period_s: float) -> None:
+        """Apply new settings, keeping the window's samples where they still fit."""
+        old, old_period = self._config, self._period
+        self._config, self._period = config, period_s
+        if (
+            config.window_s != old.window_s
+            or period_s != old_period
+            or (config.method, config.phi) != (old.method, old.phi)
+        ):
+            samples = self._window.samples
+            self._window = self._new_window()
+            self._window.extend(samples[:, 0], samples[:, 1])
+        if (config.tracking_memory_s, config.phi, config.window_s) != (
+            old.tracking_memory_s,
+            old.phi,
+            old.window_s,
+        ):
+            self._tracker = self._new_tracker()
+            if self._tracker is not None:
+                for segment in self.segments():
+                    self._tracker.mark_gap()
+                    self._tracker.extend(segment[:, 0], segment[:, 1])
+
+    def _new_tracker(self) -> ForgettingEstimator | None:
+        memory = self._config.tracking_memory_s
+        if memory <= 0.0:
+            return None
+        return ForgettingEstimator(
+            self._period,
+            memory_s=memory,
+            phi=self._config.phi,
+            ratio_memory_s=max(self._config.window_s, RATIO_MEMORY_FACTOR * memory),
+        )
+
+    def _new_window(self) -> SlidingBetaWindow:
+        capacity = max(MIN_SAMPLES, round(self._config.window_s / self._period))
+        method = self._config.method if self._config.method in BETA_METHODS else "beta-gtls"
+        return SlidingBetaWindow(capacity, self._period, method, self._config.phi)
+
+    # -- samples -------------------------------------------------------------------------------
+    def extend(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        contiguous: NDArray[np.bool_],
+        linked: bool,
+    ) -> None:
+        """Take a run of samples.
+
+        Parameters
+        ----------
+        tc1, tc2 : ndarray, shape (n,)
+            Degrees C; with ``linked`` the first sample is the last one already taken.
+        contiguous : ndarray of bool, shape (n - 1,)
+            ``contiguous[i]``: sample i+1 follows sample i without a gap.
+        linked : bool
+            Whether the first sample is the previous run's last (only its link is new).
+        """
+        if linked:
+            self._window.extend(tc1[1:], tc2[1:], contiguous)
+        else:  # the very first sample has no predecessor to link to
+            self._window.extend(tc1, tc2, np.concatenate(([True], contiguous)))
+        if self._tracker is not None:
+            for start, stop in gap_free_runs(contiguous):
+                if start > 0 or not linked:
+                    self._tracker.mark_gap()
+                begin = 1 if start == 0 and linked else start
+                self._tracker.extend(tc1[begin:stop], tc2[begin:stop])
+
+    # -- estimation ----------------------------------------------------------------------------
+    def estimate(self, stamp_ns: int) -> EstimateStatus:
+        """Estimate τ1, τ2 on the window and grade the result.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Stamp of the newest sample in the window, ns (carried into the status).
+        """
+        window = self._window
+        if window.rows + 1 < MIN_SAMPLES:
+            return EstimateStatus(
+                accepted=False,
+                estimate=None,
+                reason=f"window holds {window.rows} regression rows; {MIN_SAMPLES - 1} needed",
+                stamp_ns=stamp_ns,
+            )
+        config = self._config
+        samples = window.samples
+        try:
+            from_window = False
+            if self._tracker is not None and self._tracker.rows + 1 >= MIN_SAMPLES:
+                result = self._tracker.estimate()
+            elif config.method in BETA_METHODS and config.prefilter_hz == 0.0:
+                result = window.estimate()
+                from_window = True
+            else:
+                result = self._estimate_segments(samples)
+        except (TcompError, ValueError) as exc:
+            return EstimateStatus(
+                accepted=False, estimate=None, reason=str(exc), stamp_ns=stamp_ns
+            )
+        fit = fit_error_percent(
+            samples[:, 0], samples[:, 1], result.a1, result.a2, window.segment_starts
+        )
+        # β-GTLS on the window's own scatter has already found the eigenvalue the floor needs.
+        same_problem = from_window and config.method == "beta-gtls"
+        eigenvalue = result.params.get("noise_eigenvalue") if same_problem else None
+        floor = self._noise_floor_percent(samples, eigenvalue)
+        model = math.sqrt(max(fit**2 - floor**2, 0.0))
+        reason = ""
+        if not result.condition <= config.max_condition:
+            reason = (
+                f"ill-conditioned: condition {result.condition:.3g} exceeds "
+                f"{config.max_condition:.3g}"
+            )
+        return EstimateStatus(
+            accepted=not reason,
+            estimate=result,
+            reason=reason,
+            fit_error_pct=fit,
+            noise_floor_pct=floor,
+            model_error_pct=model,
+            stamp_ns=stamp_ns,
+            poor_fit=model > config.max_model_error_pct,
+        )
+
+    def _estimate_segments(self, samples: NDArray[np.float64]) -> Estimate:
+        """Batch estimate on the window's gap-free segments (pre-filtered, if configured).
+
+        A pre-filter run across a gap would smear the jump into the regression, so each segment
+        is filtered alone; β methods pool the segments' scatter matrices, the others use the
+        longest segment.
+        """
+        config = self._config
+        dt = self._window.dt
+        segments = np.split(samples, self._window.segment_starts)
+        prefilter_hz = config.prefilter_hz or None
+        phi = config.phi if config.method == "beta-gtls" else 1.0
+        if config.method in BETA_METHODS:
+            scatter = np.zeros((3, 3))
+            used = 0
+            for segment in segments:
+                if segment.shape[0] <= MIN_PREFILTER_SAMPLES:
+                    continue
+                first, second = segment[:, 0], segment[:, 1]
+                if prefilter_hz is not None:
+                    first = prefilter(first, dt, prefilter_hz)
+                    second = prefilter(second, dt, prefilter_hz)
+                scatter += beta_scatter(first, second)
+                used += segment.shape[0]
+            if used < MIN_SAMPLES:
+                raise DataError(f"the window's gap-free segments hold only {used} samples")
+            result = estimate_beta_from_scatter(scatter, dt, used, config.method, phi)
+            return result if prefilter_hz is None else replace(result, prefilter_hz=prefilter_hz)
+        longest = max(segments, key=len)
+        return estimate(
+            longest[:, 0],
+            longest[:, 1],
+            dt,
+            config.method,  # type: ignore[arg-type]
+            phi=phi,
+            prefilter_hz=prefilter_hz,
+        )
+
+    def _noise_floor_percent(
+        self, samples: NDArray[np.float64], eigenvalue: float | None = None
+    ) -> float:
+        """Fit error that tc2's measurement noise alone would cause, percent of std(tc2).
+
+        The smallest generalized eigenvalue of the β scatter with C0(φ) estimates σ2² times the
+        number of rows (the row noise covariance is σ2² C0(φ), Eq. 19); ``eigenvalue`` is that
+        eigenvalue when the estimate already solved this problem.
+        """
+        window = self._window
+        if eigenvalue is None:
+            try:
+                _, eigenvalues = solve_gtls(
+                    window.scatter, beta_noise_covariance(self._config.phi)
+                )
+            except (ValueError, np.linalg.LinAlgError):
+                return math.nan
+            eigenvalue = float(eigenvalues[0])
+        sigma2 = math.sqrt(max(eigenvalue, 0.0) / max(window.rows, 1))
+        spread = float(np.std(samples[:, 1]))
+        return 100.0 * sigma2 / spread if spread > 0.0 else math.nan
+
+
+def gap_free_runs(contiguous: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """``(start, stop)`` sample ranges of a batch split at its gaps.
+
+    ``contiguous[i]`` says whether sample i+1 follows sample i without a gap, so a batch of
+    ``contiguous.size + 1`` samples splits after every False.
+    """
+    breaks = (np.flatnonzero(~contiguous) + 1).tolist()
+    return list(zip([0, *breaks], [*breaks, contiguous.size + 1], strict=True))

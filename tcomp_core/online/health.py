@@ -1,0 +1,345 @@
+"""Health of the online engine: one level enum, one rule set, one key-value formatter.
+
+The compensator node's ``/diagnostics`` and the ``/diagnostics`` history ``tcomp process``
+writes come from here, so a bag processed offline reads like the node's own record of it: the
+same keys, the same counters (:data:`~.pairing.COUNTER_NAMES`), the same levels. Time enters as
+an explicit ``now`` (seconds): the node passes its clock, ``tcomp process`` the stamp time it
+has reached; nothing here reads a clock.
+
+Rules (:func:`assess`, in order of severity): ERROR when a sensor has been silent for longer
+than ``silence_timeout_s`` or sent non-finite values since the last report; STALE when no
+estimate was accepted within ``stale_after_s``; WARN when the latest estimate was refused
+(ill-conditioned, unphysical) or the model fits poorly; OK otherwise.
+
+Values that only make sense live are :data:`LIVE_ONLY_KEYS`: the publish latency (wall clock
+against input stamps). Offline they are ``nan``. The background diagnosis of the node
+(:data:`DIAGNOSIS_KEYS`) reads, offline, as the node's before its first job: ``tcomp process``
+puts its closing diagnosis on ``/diagnosis`` instead.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+from .compensator import OnlineCompensator
+from .config import EstimateStatus
+from .pairing import INPUT_NAMES, PairCounters
+
+__all__ = [
+    "DIAGNOSIS_KEYS",
+    "LIVE_ONLY_KEYS",
+    "NO_DIAGNOSIS",
+    "NO_LATENCY",
+    "Health",
+    "HealthMonitor",
+    "Level",
+    "assess",
+    "engine_values",
+    "format_value",
+]
+
+
+class Level(IntEnum):
+    """Diagnostic levels of ``diagnostic_msgs/DiagnosticStatus``."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+    STALE = 3
+
+
+def format_value(value: float) -> str:
+    """A number as diagnostics carry it: 6 significant digits, ``nan`` when not finite."""
+    return "nan" if not math.isfinite(value) else f"{value:.6g}"
+
+
+#: Keys of the node's background diagnosis, with their values before any diagnosis ran.
+NO_DIAGNOSIS: dict[str, str] = {
+    "effects": "none",
+    "effects_error_pct": "nan",
+    "base_error_pct": "nan",
+    "effects_tau1_s": "nan",
+    "effects_tau2_s": "nan",
+    "top_suspect": "none",
+    "top_suspect_error_pct": "nan",
+    "diagnosis_age_s": "nan",
+    "diagnosis_duration_s": "nan",
+    "diagnosis_error": "",
+}
+DIAGNOSIS_KEYS: tuple[str, ...] = tuple(NO_DIAGNOSIS)
+#: Keys that only make sense live: publish latency against the wall clock, milliseconds.
+NO_LATENCY: dict[str, str] = {
+    "latency_p50_ms": "nan",
+    "latency_p99_ms": "nan",
+    "latency_max_ms": "nan",
+    "latency_p99_total_ms": "nan",
+}
+LIVE_ONLY_KEYS: tuple[str, ...] = tuple(NO_LATENCY)
+
+
+def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> dict[str, str]:
+    """Settings, τ in use and the latest estimate of ``engine``, as diagnostic key-values.
+
+    Parameters
+    ----------
+    engine : OnlineCompensator
+    status : EstimateStatus or None
+        The latest re-estimation (None before the first).
+
+    Returns
+    -------
+    dict of str to str
+        ``tau1_s``, ``tau2_s`` (in use, s), ``alpha``, ``method``, ``reconstruction``,
+        ``signal_model``, ``signal_model_error``, ``tracking_memory_s``, ``window_samples``,
+        ``window_s``, ``sample_period_s``, ``gaps``, ``fit_error_pct``, ``noise_floor_pct``,
+        ``model_error_pct``, ``condition``, ``latest_tau1_s``, ``latest_tau2_s``, the 95 %
+        intervals ``tau{1,2}_ci_{low,high}_s`` (nan for estimators without them),
+        ``estimate_accepted`` and ``last_reason``.
+    """
+    config = engine.config
+    tau = engine.tau
+    estimate = None if status is None else status.estimate
+    fusion = engine.fusion_model
+    return {
+        "tau1_s": format_value(tau[0] if tau else math.nan),
+        "tau2_s": format_value(tau[1] if tau else math.nan),
+        "alpha": format_value(tau[0] / tau[1] if tau else math.nan),
+        "method": config.method,
+        "reconstruction": config.reconstruction,
+        "signal_model": fusion.kind if fusion else "",
+        "signal_model_error": engine.fusion_error,
+        "tracking_memory_s": format_value(config.tracking_memory_s),
+        "window_samples": str(engine.window_samples),
+        "window_s": format_value(config.window_s),
+        "sample_period_s": format_value(engine.period_s or math.nan),
+        "gaps": str(engine.counters["gaps"]),
+        "fit_error_pct": format_value(status.fit_error_pct if status else math.nan),
+        "noise_floor_pct": format_value(status.noise_floor_pct if status else math.nan),
+        "model_error_pct": format_value(status.model_error_pct if status else math.nan),
+        "condition": format_value(estimate.condition if estimate else math.nan),
+        "latest_tau1_s": format_value(estimate.tau1 if estimate else math.nan),
+        "latest_tau2_s": format_value(estimate.tau2 if estimate else math.nan),
+        **{
+            f"tau{i}_ci_{end}_s": format_value(
+                estimate.params.get(f"tau{i}_ci_{end}", math.nan) if estimate else math.nan
+            )
+            for i in (1, 2)
+            for end in ("low", "high")
+        },
+        "estimate_accepted": str(bool(status and status.accepted)).lower(),
+        "last_reason": status.reason if status else "",
+    }
+
+
+@dataclass(frozen=True)
+class Health:
+    """Level, one-line message and key-values of the diagnostic status."""
+
+    level: Level
+    message: str
+    values: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SensorReport:
+    """What one input did, as the rules see it.
+
+    Attributes
+    ----------
+    name : str
+        'tc1' or 'tc2'.
+    silent_for_s : float
+        Time since the input was last heard, seconds (inf when never).
+    invalid_since_report : int
+        Non-finite samples since the last report.
+    last_invalid_ns : int
+        Stamp of the latest of them, ns.
+    """
+
+    name: str
+    silent_for_s: float
+    invalid_since_report: int = 0
+    last_invalid_ns: int = 0
+
+
+def assess(
+    sensors: list[SensorReport],
+    *,
+    silence_timeout_s: float,
+    estimate_age_s: float,
+    stale_after_s: float,
+    status: EstimateStatus | None,
+    max_model_error_pct: float,
+) -> tuple[Level, str]:
+    """Decide the diagnostic level and message (the module's rules, in order of severity).
+
+    Parameters
+    ----------
+    sensors : list of SensorReport
+    silence_timeout_s : float
+        A sensor silent this long is an ERROR, seconds.
+    estimate_age_s : float
+        Time since the latest accepted estimate, seconds (inf when none).
+    stale_after_s : float
+        An estimate older than this is STALE, seconds.
+    status : EstimateStatus or None
+        The latest re-estimation.
+    max_model_error_pct : float
+        Model error above which the fit is poor, percent.
+
+    Returns
+    -------
+    (Level, str)
+    """
+    errors = []
+    for sensor in sensors:
+        if sensor.silent_for_s > silence_timeout_s:
+            silent = (
+                "never heard"
+                if math.isinf(sensor.silent_for_s)
+                else f"silent for {sensor.silent_for_s:.1f} s"
+            )
+            errors.append(f"{sensor.name} {silent}")
+        if sensor.invalid_since_report:
+            errors.append(
+                f"{sensor.name} sent {sensor.invalid_since_report} non-finite value(s), "
+                f"last at stamp {sensor.last_invalid_ns * 1e-9:.6f} s"
+            )
+    if errors:
+        return Level.ERROR, "; ".join(errors)
+    reason = status.reason if status else ""
+    if not estimate_age_s <= stale_after_s:
+        why = reason or "waiting for the window to fill"
+        age = (
+            "no estimate yet"
+            if math.isinf(estimate_age_s)
+            else f"last accepted estimate {estimate_age_s:.1f} s old"
+        )
+        return Level.STALE, f"{age}: {why}"
+    if status is not None and not status.accepted and reason:
+        return Level.WARN, f"latest estimate refused: {reason}"
+    if status is not None and status.poor_fit:
+        return (
+            Level.WARN,
+            f"poor fit: model error {format_value(status.model_error_pct)} % exceeds "
+            f"{format_value(max_model_error_pct)} %: the first-order model misses an effect",
+        )
+    return Level.OK, "estimating"
+
+
+class HealthMonitor:
+    """The time-dependent part of the health: when each input was heard, report periods.
+
+    Parameters
+    ----------
+    silence_timeout_s : float
+        A sensor silent this long is an ERROR, seconds.
+    stale_after_s : float
+        An accepted estimate older than this is STALE, seconds.
+    """
+
+    def __init__(self, silence_timeout_s: float, stale_after_s: float) -> None:
+        self.silence_timeout_s = silence_timeout_s
+        self.stale_after_s = stale_after_s
+        self._heard = [math.nan, math.nan]
+        self._accepted_at = math.nan
+        self._report_time = math.nan
+        self._received_at_report = [0, 0]
+        self._invalid_at_report = [0, 0]
+
+    def heard(self, index: int, now: float) -> None:
+        """Input ``index`` delivered samples at ``now`` (seconds)."""
+        self._heard[index] = now
+        if math.isnan(self._report_time):
+            self._report_time = now
+
+    def estimated(self, status: EstimateStatus, now: float) -> None:
+        """A re-estimation happened at ``now`` (seconds)."""
+        if status.accepted:
+            self._accepted_at = now
+
+    def estimate_age_s(self, now: float) -> float:
+        """Seconds since the latest accepted estimate (inf when none)."""
+        return now - self._accepted_at if math.isfinite(self._accepted_at) else math.inf
+
+    def report(
+        self,
+        now: float,
+        *,
+        engine: OnlineCompensator,
+        counters: PairCounters,
+        published: int,
+        max_model_error_pct: float,
+        extra: Mapping[str, str] = NO_DIAGNOSIS | NO_LATENCY,
+        new_period: bool = True,
+    ) -> Health:
+        """The status at ``now`` (seconds), by default starting a new report period.
+
+        Parameters
+        ----------
+        now : float
+            Seconds on the caller's clock (the node's clock, or stamp time offline).
+        engine : OnlineCompensator
+        counters : PairCounters
+            The pair matcher's counters.
+        published : int
+            Gas samples published so far.
+        max_model_error_pct : float
+            Model error above which the fit is poor, percent.
+        extra : mapping of str to str
+            The diagnosis and latency key-values (:data:`NO_DIAGNOSIS`, :data:`NO_LATENCY`
+            offline).
+        new_period : bool
+            Start a new report period (rates and invalid samples count from ``now``).
+        """
+        elapsed = max(now - self._report_time, 1e-9) if math.isfinite(self._report_time) else 0
+        rates = [
+            (counters.received[i] - self._received_at_report[i]) / elapsed if elapsed else 0.0
+            for i in (0, 1)
+        ]
+        status = engine.last_status
+        age = self.estimate_age_s(now)
+        unmatched = counters.total_unmatched
+        values = {
+            **engine_values(engine, status),
+            "rate_tc1_hz": format_value(rates[0]),
+            "rate_tc2_hz": format_value(rates[1]),
+            "received_tc1": str(counters.received[0]),
+            "received_tc2": str(counters.received[1]),
+            "matched": str(counters.matched),
+            "dropped": str(unmatched + counters.out_of_order + counters.duplicates),
+            "unmatched": str(unmatched),
+            "out_of_order": str(counters.out_of_order),
+            "duplicates": str(counters.duplicates),
+            "invalid_tc1": str(counters.invalid[0]),
+            "invalid_tc2": str(counters.invalid[1]),
+            "published": str(published),
+            "estimate_age_s": format_value(age),
+            **extra,
+        }
+        sensors = [
+            SensorReport(
+                name=name,
+                silent_for_s=now - self._heard[i] if math.isfinite(self._heard[i]) else math.inf,
+                invalid_since_report=counters.invalid[i] - self._invalid_at_report[i],
+                last_invalid_ns=counters.last_invalid_ns[i],
+            )
+            for i, name in enumerate(INPUT_NAMES)
+        ]
+        level, message = assess(
+            sensors,
+            silence_timeout_s=self.silence_timeout_s,
+            estimate_age_s=age,
+            stale_after_s=self.stale_after_s,
+            status=status,
+            max_model_error_pct=max_model_error_pct,
+        )
+        if not new_period:
+            return Health(level, message, values)
+        self._report_time = now
+        self._received_at_report = list(counters.received)
+        self._invalid_at_report = list(counters.invalid)
+        return Health(level, message, values)
