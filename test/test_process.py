@@ -29,10 +29,12 @@ from tcomp_core.io import (
 )
 from tcomp_core.online import OnlineCompensator, OnlineConfig
 from tcomp_core.process import (
+    Outcome,
     ProcessConfig,
     decode_payloads,
     decode_rows,
     encode,
+    format_summary,
     process,
     process_many,
 )
@@ -377,6 +379,11 @@ def test_diagnosis_verdict_topic(tmp_path):
         ]
     values = {kv.key: kv.value for kv in message.status[0].values}
     assert values["verdict"] == result.verdict
+    # The closing diagnosis is timed apart from the streaming, and the table says so.
+    assert 0.0 < result.diagnosis_seconds < result.seconds
+    assert result.pairs_per_s > result.pairs / result.seconds
+    table = format_summary([Outcome(bag, tmp_path / "out", result)])
+    assert f"{result.diagnosis_seconds:.2f} s" in table.splitlines()[1]
 
 
 def test_jobs_two_on_a_directory_and_the_cli(tmp_path, capsys):
@@ -394,6 +401,9 @@ def test_jobs_two_on_a_directory_and_the_cli(tmp_path, capsys):
     table = capsys.readouterr().out
     lines = table.splitlines()
     assert "pairs/s" in table
+    header = next(k for k, line in enumerate(lines) if line.startswith("input "))
+    assert "diagnosis" in lines[header]
+    assert all("skipped" in line for line in lines[header + 1 : header + 3])
     assert any(line.startswith("a ") for line in lines)
     assert any(line.startswith("b ") for line in lines)
     for name in ("a", "b"):

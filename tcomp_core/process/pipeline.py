@@ -138,7 +138,10 @@ class ProcessResult:
     verdict : str
         The diagnosis verdict (an effect or 'none'), 'skipped' or 'failed: ...'.
     seconds : float
-        Wall time.
+        Wall time, the closing diagnosis included.
+    diagnosis_seconds : float
+        Wall time of the closing diagnosis (0 when skipped). It sees at most
+        ``diagnose_samples`` pairs, so its cost does not grow with the record.
     warnings : list of str
         Truncated input, dropped samples.
     counters : dict of str to int
@@ -156,14 +159,16 @@ class ProcessResult:
     verdict: str
     seconds: float
     reports: int = 0
+    diagnosis_seconds: float = 0.0
     warnings: list[str] = field(default_factory=list)
     counters: dict[str, int] = field(default_factory=dict)
     diagnosis: dict[str, str] = field(default_factory=dict)
 
     @property
     def pairs_per_s(self) -> float:
-        """Pairs processed per wall-clock second."""
-        return self.pairs / self.seconds if self.seconds > 0 else math.nan
+        """Pairs processed per wall-clock second, the closing diagnosis left out."""
+        streaming = self.seconds - self.diagnosis_seconds
+        return self.pairs / streaming if streaming > 0 else math.nan
 
 
 class Progress(Protocol):
@@ -434,10 +439,12 @@ def _run(
         warnings[:0] = [str(truncation), f"{source}: processed up to there ({where})"]
     verdict: str = "skipped"
     diagnosis: dict[str, str] = {}
+    diagnosis_started = time.perf_counter()
     if config.diagnose:
         verdict, diagnosis, level = _diagnose(tail, source, config.online.gap_factor)
         last_stamp = max(stamp for _, stamp in last_good.values())
         sink.diagnosis(last_stamp, level, f"diagnosis verdict: {verdict}", diagnosis)
+    diagnosis_seconds = time.perf_counter() - diagnosis_started if config.diagnose else 0.0
     sink.close()
     counters: dict[str, Any] = {**engine.counters.as_dict(), **engine.compensator.counters}
     return ProcessResult(
@@ -450,6 +457,7 @@ def _run(
         tau=engine.compensator.tau,
         verdict=verdict,
         seconds=time.perf_counter() - started,
+        diagnosis_seconds=diagnosis_seconds,
         warnings=warnings,
         counters=counters,
         diagnosis=diagnosis,
