@@ -44,10 +44,13 @@ def simulate_tc2_from_tc1(
     gain = (1.0 - a2) / (1.0 - a1)
     numerator = [gain, -gain * a1]
     denominator = [1.0, -a2]
-    # Start from equilibrium at tc1[0], then add the decay of the initial mismatch.
-    zi = signal.lfiltic(numerator, denominator, y=[initial_tc2], x=[tc1[0]])
-    predicted, _ = signal.lfilter(numerator, denominator, tc1[1:], zi=zi)
-    return np.concatenate(([initial_tc2], predicted))
+    # The filter's state before tc1[1] carries tc1[0] and tc2[0] (what scipy.signal.lfiltic
+    # computes for a first-order section, without its per-call cost).
+    zi = np.array([numerator[1] * float(tc1[0]) + a2 * initial_tc2])
+    predicted = np.empty(tc1.size)
+    predicted[0] = initial_tc2
+    predicted[1:], _ = signal.lfilter(numerator, denominator, tc1[1:], zi=zi)
+    return predicted
 
 
 def fit_error_percent(
@@ -72,13 +75,12 @@ def fit_error_percent(
         measured tc2 there, as it does at index 0.
     """
     bounds = [0, *(() if segment_starts is None else segment_starts.tolist()), tc1.size]
-    predicted = np.concatenate(
-        [
-            simulate_tc2_from_tc1(tc1[start:stop], float(tc2[start]), a1, a2)
-            for start, stop in itertools.pairwise(bounds)
-            if stop > start
-        ]
-    )
+    parts = [
+        simulate_tc2_from_tc1(tc1[start:stop], float(tc2[start]), a1, a2)
+        for start, stop in itertools.pairwise(bounds)
+        if stop > start
+    ]
+    predicted = parts[0] if len(parts) == 1 else np.concatenate(parts)
     spread = float(np.std(tc2))
     if spread == 0.0:
         return float("inf")

@@ -78,6 +78,13 @@ class SlidingBetaWindow:
         return self._buffer[self._start : self._end, :2].copy()
 
     @property
+    def samples_view(self) -> NDArray[np.float64]:
+        """:attr:`samples` without the copy: read-only, valid until the window next changes."""
+        view = self._buffer[self._start : self._end, :2]
+        view.flags.writeable = False
+        return view
+
+    @property
     def segment_starts(self) -> NDArray[np.intp]:
         """Indices (into :attr:`samples`) of the samples that follow a gap."""
         flags = self._buffer[self._start + 1 : self._end, 2]

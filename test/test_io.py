@@ -17,7 +17,9 @@ from tcomp_core.io import (
     DEFAULT_TOPICS,
     GAS_TOPIC,
     TEMPERATURE_TYPE,
+    DiagnosticStatusFields,
     Record,
+    encode_diagnostic_array,
     read_bag,
     read_csv,
     read_record,
@@ -618,3 +620,48 @@ def test_record_checks_its_fields():
         Record(time=time, tc1=time, tc2=time[:-1], ref=None, source="here", dt=1.0)
     with pytest.raises(DataError, match=r"here: dt=0\.0 must be a finite interval"):
         Record(time=time, tc1=time, tc2=time, ref=None, source="here", dt=0.0)
+
+
+@pytest.mark.parametrize(
+    "statuses",
+    [
+        [],
+        [DiagnosticStatusFields(0, "tcomp: process", "estimating", "pair", {"tau1_s": "0.0238"})],
+        [
+            DiagnosticStatusFields(2, "a", "°C and ünïcode", "", {"k": "", "": "v" * 7}),
+            DiagnosticStatusFields(3, "", "", "hw", {}),
+        ],
+    ],
+)
+def test_diagnostic_array_encoder_writes_what_rosbags_writes(statuses):
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = store.types
+    stamp_ns = 1_700_000_000_123_456_789
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    message = types["diagnostic_msgs/msg/DiagnosticArray"](
+        header=types["std_msgs/msg/Header"](
+            stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""
+        ),
+        status=[
+            types["diagnostic_msgs/msg/DiagnosticStatus"](
+                level=s.level,
+                name=s.name,
+                message=s.message,
+                hardware_id=s.hardware_id,
+                values=[
+                    types["diagnostic_msgs/msg/KeyValue"](key=k, value=v)
+                    for k, v in s.values.items()
+                ],
+            )
+            for s in statuses
+        ],
+    )
+    expected = bytes(store.serialize_cdr(message, "diagnostic_msgs/msg/DiagnosticArray"))
+    assert encode_diagnostic_array(stamp_ns, statuses) == expected
+
+
+def test_diagnostic_array_encoder_refuses_what_the_message_cannot_hold():
+    with pytest.raises(ValueError, match="stamp_ns"):
+        encode_diagnostic_array(-1, [])
+    with pytest.raises(ValueError, match="level"):
+        encode_diagnostic_array(0, [DiagnosticStatusFields(256, "", "", "", {})])

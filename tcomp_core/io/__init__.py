@@ -16,13 +16,15 @@ Modules, one job each: :mod:`.record` (record type, names, stamps), :mod:`.paths
 a bag's files, clearing an output), :mod:`.csvfile`, :mod:`.temperature` (the CDR codec),
 :mod:`.mcap_records` (records, read-ahead thread, decompression, CRC), :mod:`.mcap_read`
 (chunk-wise scanner), :mod:`.mcap_write` (chunk writer), :mod:`.bag`,
-:mod:`.stream` (chunk-by-chunk input of ``tcomp process``), :mod:`.qos`, :mod:`.dispatch`.
+:mod:`.stream` (chunk-by-chunk input of ``tcomp process``), :mod:`.qos`, :mod:`.dispatch`,
+:mod:`.diagnostics` (the ``DiagnosticArray`` encoder of the bags ``tcomp process`` writes).
 """
 
 from __future__ import annotations
 
 from .bag import read_bag, read_topics, write_bag, write_bag_copy
 from .csvfile import read_csv, write_csv
+from .diagnostics import DiagnosticStatusFields, encode_diagnostic_array
 from .dispatch import read_record, write_series
 from .mcap_read import ChunkData, McapScan, Truncation, log_times, payloads
 from .mcap_write import McapBagWriter
@@ -71,6 +73,7 @@ __all__ = [
     "Block",
     "ChunkData",
     "CsvStream",
+    "DiagnosticStatusFields",
     "Encoder",
     "McapBagWriter",
     "McapScan",
@@ -86,6 +89,7 @@ __all__ = [
     "decode_payloads",
     "decode_rows",
     "encode",
+    "encode_diagnostic_array",
     "encode_message",
     "format_stamp",
     "is_bag_directory",

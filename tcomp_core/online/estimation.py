@@ -160,7 +160,7 @@ class WindowEstimator:
                 stamp_ns=stamp_ns,
             )
         config = self._config
-        samples = window.samples
+        samples = window.samples_view  # read within this call only
         try:
             from_window = False
             if self._tracker is not None and self._tracker.rows + 1 >= MIN_SAMPLES:

@@ -29,10 +29,12 @@ from numpy.typing import NDArray
 from ..io import (
     GAS_TOPIC,
     TEMPERATURE_TYPE,
+    DiagnosticStatusFields,
     McapBagWriter,
     TemperatureBatch,
     column,
     encode,
+    encode_diagnostic_array,
     offered_qos,
 )
 
@@ -81,8 +83,6 @@ class BagOutput:
         hardware_id: str = "thermocouple-pair",
         with_diagnosis: bool = True,
     ) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
         self.path = path
         self._writer = McapBagWriter(path, compress=compress)
         self._input_topics = dict(input_topics)
@@ -95,7 +95,6 @@ class BagOutput:
             **({"diagnosis": (DIAGNOSIS_TOPIC, DIAGNOSTIC_TYPE)} if with_diagnosis else {}),
         }
         self._derived_channels: dict[str, int] = {}
-        self._typestore = get_typestore(Stores.ROS2_JAZZY)
         self._hardware_id = hardware_id
         self.counts = {"gas": 0, "history": 0, "diagnosis": 0}
         self._gas: list[tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]] = []
@@ -176,23 +175,14 @@ class BagOutput:
     def _status_array(
         self, stamp_ns: int, level: int, message: str, values: Mapping[str, str]
     ) -> bytes:
-        types = self._typestore.types
-        sec, nanosec = divmod(int(stamp_ns), _NS_PER_S)
-        status = types["diagnostic_msgs/msg/DiagnosticStatus"](
-            level=level,
+        status = DiagnosticStatusFields(
+            level=int(level),
             name=STATUS_NAME,
             message=message,
             hardware_id=self._hardware_id,
-            values=[
-                types["diagnostic_msgs/msg/KeyValue"](key=key, value=str(value))
-                for key, value in values.items()
-            ],
+            values={key: str(value) for key, value in values.items()},
         )
-        header = types["std_msgs/msg/Header"](
-            stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""
-        )
-        array = types[DIAGNOSTIC_TYPE](header=header, status=[status])
-        return bytes(self._typestore.serialize_cdr(array, DIAGNOSTIC_TYPE))
+        return encode_diagnostic_array(int(stamp_ns), [status])
 
     def estimate(self, stamp_ns: int, level: int, message: str, values: Mapping[str, str]) -> None:
         """Write one entry of the τ history."""
