@@ -4,6 +4,7 @@ import re
 
 import numpy as np
 import pytest
+import scipy.linalg
 from reference_impl import reference_estimate, tdr_kee_reference, true_params
 from scipy import signal as sps
 from sim_records import make_pair
@@ -18,6 +19,7 @@ from tcomp_core import (
 )
 from tcomp_core.errors import EstimationError
 from tcomp_core.estimators import DIFFERENCE_EQUATION_METHODS
+from tcomp_core.estimators.scatter import solve_gtls
 from tcomp_core.filters import prefilter
 from tcomp_core.models import pole_to_tau, tau_to_pole
 from tcomp_core.simulate import SIGNALS
@@ -519,3 +521,18 @@ def test_non_finite_time(bad):
 def test_single_sample_time_refused():
     with pytest.raises(DataError, match="no sample interval"):
         sample_interval_from_time([1.0])
+
+
+def test_solve_gtls_matches_the_generalized_eigenvector_and_refuses_non_finite():
+    rng = np.random.default_rng(12)
+    rows = rng.normal(size=(500, 3))
+    scatter = rows.T @ rows
+    covariance = np.array([[2.0, 0.3, 0.1], [0.3, 1.0, 0.2], [0.1, 0.2, 1.5]])
+    theta, eigenvalues = solve_gtls(scatter, covariance)
+    values, vectors = scipy.linalg.eigh(scatter, covariance)
+    np.testing.assert_allclose(eigenvalues, values, rtol=1e-12)
+    smallest = vectors[:, 0]
+    np.testing.assert_allclose(theta, -smallest[:-1] / smallest[-1], rtol=1e-9)
+    scatter[0, 0] = np.inf
+    with pytest.raises(ValueError, match="non-finite"):
+        solve_gtls(scatter, covariance)

@@ -252,8 +252,12 @@ def solve_gtls(
     """
     width = scatter.shape[0]
     covariance = np.eye(width) if covariance is None else covariance
-    eigenvalues = scipy.linalg.eigh(scatter, covariance, eigvals_only=True)
+    if not (np.isfinite(scatter).all() and np.isfinite(covariance).all()):
+        raise ValueError("the scatter or noise covariance matrix holds non-finite values")
+    # Checked above: scipy's own checks cost more than these small problems (the online
+    # engine solves one per update).
+    eigenvalues = scipy.linalg.eigh(scatter, covariance, eigvals_only=True, check_finite=False)
     smallest = eigenvalues[0]
     lhs = scatter[:-1, :-1] - smallest * covariance[:-1, :-1]
     rhs = scatter[:-1, -1] - smallest * covariance[:-1, -1]
-    return scipy.linalg.solve(lhs, rhs, assume_a="sym"), eigenvalues
+    return np.linalg.solve(lhs, rhs), eigenvalues

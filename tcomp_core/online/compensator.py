@@ -287,6 +287,6 @@ class OnlineCompensator:
                     self._config, self._period, self._tau, self.longest_segment()
                 )
             else:
-                self._reconstructor.retune(self._tau, self.longest_segment())
+                self._reconstructor.retune(self._tau, self.longest_segment)
         self.last_status = status
         return status

@@ -22,6 +22,7 @@ without a gap (pair k reconstructs the gas held from pair k-1's stamp).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 from typing import NamedTuple, Protocol
 
@@ -35,12 +36,16 @@ from ..reconstruct import combination_weight
 from .config import FUSION_FIT_SAMPLES, FUSION_REFIT_CHANGE, OnlineConfig
 from .estimation import gap_free_runs
 
+#: Gives the window's longest gap-free stretch, shape (n, 2), degrees C, when called.
+SegmentSource = Callable[[], NDArray[np.float64]]
+
 __all__ = [
     "DifferenceReconstructor",
     "GasBatch",
     "KalmanReconstructor",
     "PostFilter",
     "Reconstructor",
+    "SegmentSource",
     "make_reconstructor",
 ]
 
@@ -91,8 +96,11 @@ class Reconstructor(Protocol):
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Gas (degrees C) and variance (degrees C squared) of each contiguous step."""
 
-    def retune(self, tau: tuple[float, float], segment: NDArray[np.float64]) -> None:
-        """Use new time constants (s); ``segment`` (n, 2) is the window's longest stretch."""
+    def retune(self, tau: tuple[float, float], segment: SegmentSource) -> None:
+        """Use new time constants (s); ``segment()`` gives the window's longest stretch (n, 2).
+
+        ``segment`` is called only by a reconstructor that refits on the window (it copies it).
+        """
 
 
 class DifferenceReconstructor:
@@ -129,7 +137,7 @@ class DifferenceReconstructor:
         """τ1, τ2 in use, seconds."""
         return self._tau
 
-    def retune(self, tau: tuple[float, float], segment: NDArray[np.float64]) -> None:
+    def retune(self, tau: tuple[float, float], segment: SegmentSource) -> None:
         """Use new time constants, seconds (the window is not needed)."""
         self._tau = tau
         self._weight = self._combination_weight()
@@ -185,7 +193,7 @@ class KalmanReconstructor:
         self._fusion_samples = 0  # samples it was fitted on
         #: Why the signal model could not be fitted ('' when it could).
         self.error = ""
-        self.retune(tau, segment)
+        self.retune(tau, lambda: segment)
 
     def configure(self, config: OnlineConfig) -> None:
         """Take settings that keep the signal model (``reconstruct_from``, ``phi``, ...)."""
@@ -197,25 +205,25 @@ class KalmanReconstructor:
         """The fitted signal model (None until one could be fitted)."""
         return None if self._fuser is None else self._fuser.model
 
-    def retune(self, tau: tuple[float, float], segment: NDArray[np.float64]) -> None:
-        """Retune the filter to the new τ, or refit its signal model on ``segment``."""
+    def retune(self, tau: tuple[float, float], segment: SegmentSource) -> None:
+        """Retune the filter to the new τ, or refit its signal model on ``segment()``."""
         self._fallback.retune(tau, segment)
         tau1, tau2 = tau
-        segment = segment[-FUSION_FIT_SAMPLES:]
+        stretch = segment()[-FUSION_FIT_SAMPLES:]
         if self._fuser is not None and self._fusion_tau is not None:
             moved = max(
                 abs(new / old - 1.0) for new, old in zip(tau, self._fusion_tau, strict=True)
             )
             # Early fits see few samples (noise levels from short spectra): refit as the
             # stretch doubles, up to FUSION_FIT_SAMPLES.
-            grown = segment.shape[0] >= 2 * self._fusion_samples
+            grown = stretch.shape[0] >= 2 * self._fusion_samples
             if moved < FUSION_REFIT_CHANGE and not grown:
                 self._fuser.retune(replace(self._fuser.model, tau1=tau1, tau2=tau2))
                 return
         try:
             model, _, _ = fit_fusion_model(
-                segment[:, 0],
-                segment[:, 1],
+                stretch[:, 0],
+                stretch[:, 1],
                 self._period,
                 tau1,
                 tau2,
@@ -232,7 +240,7 @@ class KalmanReconstructor:
         else:
             self._fuser.retune(model)
         self._fusion_tau = (tau1, tau2)
-        self._fusion_samples = segment.shape[0]
+        self._fusion_samples = stretch.shape[0]
 
     def reconstruct(
         self,
