@@ -184,8 +184,8 @@ class BagOutput:
         )
         return encode_diagnostic_array(int(stamp_ns), [status])
 
-    def estimate(self, stamp_ns: int, level: int, message: str, values: Mapping[str, str]) -> None:
-        """Write one entry of the τ history."""
+    def report(self, stamp_ns: int, level: int, message: str, values: Mapping[str, str]) -> None:
+        """Write one ``/diagnostics`` status (an entry of the τ history)."""
         data = self._status_array(stamp_ns, level, message, values)
         self._writer.write_message(self._channel("history"), int(stamp_ns), data)
         self.counts["history"] += 1
@@ -241,7 +241,7 @@ class CsvOutput:
     def inputs(self, *_: Any) -> None:
         """Inputs appear as the pairs' columns."""
 
-    def estimate(self, *_: Any) -> None:
+    def report(self, *_: Any) -> None:
         """The τ history is in the tau columns."""
 
     def diagnosis(self, *_: Any) -> None:

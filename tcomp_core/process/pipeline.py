@@ -408,7 +408,7 @@ def _run(
             sink.gas(gas.stamps_ns, gas.gas, gas.variance, step.tau, frame_id, step.last_stamp_ns)
             if step.health is not None:
                 health = step.health
-                sink.estimate(step.last_stamp_ns, int(health.level), health.message, health.values)
+                sink.report(step.last_stamp_ns, int(health.level), health.message, health.values)
 
     for block in reader:
         samples = {}
