@@ -21,6 +21,9 @@ from tcomp_core.errors import DataError, TcompError
 from tcomp_core.io import (
     DEFAULT_TOPICS,
     McapScan,
+    decode_payloads,
+    decode_rows,
+    encode,
     log_times,
     payloads,
     read_bag,
@@ -31,9 +34,6 @@ from tcomp_core.online import OnlineCompensator, OnlineConfig
 from tcomp_core.process import (
     Outcome,
     ProcessConfig,
-    decode_payloads,
-    decode_rows,
-    encode,
     format_summary,
     process,
     process_many,
