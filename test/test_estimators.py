@@ -19,7 +19,7 @@ from tcomp_core import (
 )
 from tcomp_core.errors import EstimationError
 from tcomp_core.estimators import DIFFERENCE_EQUATION_METHODS
-from tcomp_core.estimators.scatter import solve_gtls
+from tcomp_core.estimators.scatter import equilibrated_condition, solve_gtls
 from tcomp_core.filters import prefilter
 from tcomp_core.models import pole_to_tau, tau_to_pole
 from tcomp_core.simulate import SIGNALS
@@ -536,3 +536,21 @@ def test_solve_gtls_matches_the_generalized_eigenvector_and_refuses_non_finite()
     scatter[0, 0] = np.inf
     with pytest.raises(ValueError, match="non-finite"):
         solve_gtls(scatter, covariance)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_two_by_two_condition_equals_the_eigenvalue_route(seed):
+    # The 2x2 closed form (eigenvalues 1 ± |r|) against the equilibrated eigenvalues.
+    rng = np.random.default_rng(seed)
+    for _ in range(200):
+        regressors = rng.normal(size=(50, 2))
+        regressors[:, 1] = regressors[:, 0] * rng.uniform(-1, 1) + regressors[
+            :, 1
+        ] * 10 ** rng.uniform(-5, 0)
+        scatter = regressors.T @ regressors
+        scale = 1.0 / np.sqrt(np.diag(scatter))
+        eigenvalues = np.linalg.eigvalsh(scatter * np.outer(scale, scale))
+        expected = math.sqrt(eigenvalues[-1] / eigenvalues[0])
+        assert equilibrated_condition(scatter) == pytest.approx(expected, rel=1e-4)
+    assert equilibrated_condition(np.array([[1.0, 1.0], [1.0, 1.0]])) == np.inf
+    assert equilibrated_condition(np.array([[0.0, 0.0], [0.0, 1.0]])) == np.inf

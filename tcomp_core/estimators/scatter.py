@@ -9,6 +9,8 @@ SVD of the N×3 matrix the paper used (Eq. 20) takes O(N) memory.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
@@ -177,6 +179,13 @@ def equilibrated_condition(regressor_scatter: NDArray[np.float64]) -> float:
     Columns are first scaled to unit norm, so the figure measures collinearity, not units:
     ``cond(X D) = sqrt(cond(D XᵀX D))`` with ``D = diag(XᵀX)^(-1/2)``.
     """
+    if regressor_scatter.shape == (2, 2):
+        # Equilibrated, it is [[1, r], [r, 1]] with eigenvalues 1 ± |r|.
+        (s11, s12), (_, s22) = regressor_scatter.tolist()
+        if not (s11 > 0.0 and s22 > 0.0):
+            return np.inf
+        r = min(abs(s12) / math.sqrt(s11 * s22), 1.0)
+        return math.sqrt((1.0 + r) / (1.0 - r)) if r < 1.0 else np.inf
     diagonal = np.diag(regressor_scatter)
     if np.any(diagonal <= 0.0):
         return np.inf

@@ -13,9 +13,10 @@ import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from .temperature import CDR_LE_HEADER
+
 __all__ = ["DiagnosticStatusFields", "encode_diagnostic_array"]
 
-_CDR_LE_HEADER = bytes((0, 1, 0, 0))
 _UINT32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
 _NS_PER_S = 1_000_000_000
@@ -91,4 +92,4 @@ def encode_diagnostic_array(stamp_ns: int, statuses: Sequence[DiagnosticStatusFi
         offset = _strings((status.name, status.message, status.hardware_id), offset + 1, parts)
         offset = _uint32(len(status.values), offset, parts)
         offset = _strings([text for item in status.values.items() for text in item], offset, parts)
-    return _CDR_LE_HEADER + b"".join(parts)
+    return CDR_LE_HEADER + b"".join(parts)

@@ -35,6 +35,7 @@ anything this reader does not recognise.
 
 from __future__ import annotations
 
+import itertools
 import struct
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import closing
@@ -433,10 +434,18 @@ class McapScan:
         if not (np.all(rows[:, 0] == _MESSAGE) and np.all(lengths == length)):
             return False
         channels = column(rows, 9, "<u2")
-        for channel_id, topic in self._channels.items():
-            selected = rows[channels == channel_id]
-            if selected.shape[0]:
-                chunk.topics.setdefault(topic, []).append(selected)
+        edges = np.flatnonzero(channels[1:] != channels[:-1]) + 1
+        if edges.size < 64:  # a few runs of one channel each (how writers fill chunks): views
+            bounds = (0, *edges.tolist(), rows.shape[0])
+            for begin, end in itertools.pairwise(bounds):
+                topic = self._channels.get(int(channels[begin]))
+                if topic is not None:
+                    chunk.topics.setdefault(topic, []).append(rows[begin:end])
+        else:
+            for channel_id, topic in self._channels.items():
+                selected = rows[channels == channel_id]
+                if selected.shape[0]:
+                    chunk.topics.setdefault(topic, []).append(selected)
         chunk.path = "stride"
         return True
 

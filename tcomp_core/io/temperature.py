@@ -107,6 +107,7 @@ class TemperatureBatch:
         )
 
 
+_CDR_LE_HEADER_WORD = int.from_bytes(CDR_LE_HEADER, "little")
 _EMPTY = TemperatureBatch(np.empty(0, np.int64), np.empty(0), np.empty(0))
 
 
@@ -161,7 +162,7 @@ def decode_rows(rows: NDArray[np.uint8]) -> TemperatureBatch:
         return _EMPTY
     if size < 16:
         return _decode_slow([rows[i].tobytes() for i in range(count)])
-    header_ok = np.all(rows[:, :4] == np.frombuffer(CDR_LE_HEADER, np.uint8), axis=1)
+    header_ok = column(rows, 0, "<u4") == _CDR_LE_HEADER_WORD
     lengths = column(rows, 12, "<u4")
     frame_length = int(lengths[0]) if header_ok[0] else int(np.median(lengths))
     good = header_ok & (lengths == frame_length)

@@ -220,8 +220,11 @@ class PairMatcher:
     4. a queue longer than ``queue_size`` loses its oldest sample (counted ``unmatched``).
 
     Each queue is a sorted Python list of stamps with a parallel list of values, holding only
-    stamps after the input's last matched stamp. After every call no queued tc1 sample lies
-    within the slop of a queued tc2 sample (the later of the two would have found the other).
+    stamps after the input's last matched stamp. A batch queued whole by :meth:`add_batch` into
+    an empty queue stays a pair of arrays ("parked") until a call needs the lists, so the usual
+    exact in-order stream (all tc1 of a drain, then all tc2) pairs array against array. After
+    every call no queued tc1 sample lies within the slop of a queued tc2 sample (the later of
+    the two would have found the other).
 
     Complexity: an in-order sample is appended in amortised O(1) and its partner found with one
     bisection, O(log n) for ``n`` queued samples on the other input. :meth:`add_batch` with
@@ -251,6 +254,8 @@ class PairMatcher:
         self.counters = PairCounters()
         self._stamps: tuple[list[int], list[int]] = ([], [])
         self._values: tuple[list[float], list[float]] = ([], [])
+        # Per input: a whole queue held as (stamps, values) arrays; the lists are empty then.
+        self._parked: list[tuple[NDArray[np.int64], NDArray[np.float64]] | None] = [None, None]
         self._last: list[float] = [-math.inf, -math.inf]
 
     @property
@@ -295,8 +300,18 @@ class PairMatcher:
             return []
         return self._offer(index, stamp_ns, value)
 
+    def _unpark(self) -> None:
+        """Turn parked queues into the lists every other path works on."""
+        for index, parked in enumerate(self._parked):
+            if parked is not None:
+                self._stamps[index][:] = parked[0].tolist()
+                self._values[index][:] = parked[1].tolist()
+                self._parked[index] = None
+
     def _offer(self, index: int, stamp_ns: int, value: float) -> list[Pair]:
         """Rules 1-4 of the class notes for one finite sample (already counted received)."""
+        if self._parked[0] is not None or self._parked[1] is not None:
+            self._unpark()
         counters = self.counters
         if stamp_ns <= self._last[index]:
             counters.out_of_order += 1
@@ -443,12 +458,14 @@ class PairMatcher:
         late = 0
         if increasing and last != -math.inf:
             late = int(np.searchsorted(stamps, last, side="right"))
-        own = self._stamps[index]
+        parked = self._parked[index]
+        queue = self._stamps[index]
+        own_last = int(parked[0][-1]) if parked is not None else queue[-1] if queue else None
         rest = stamps[late:]
         in_order = (
             self._slop == 0
             and increasing
-            and (not own or rest.size == 0 or int(rest[0]) > own[-1])
+            and (own_last is None or rest.size == 0 or int(rest[0]) > own_last)
         )
         if not in_order:
             offer = self._offer
@@ -468,26 +485,34 @@ class PairMatcher:
     ) -> Pairs:
         """Rules 3-4 for strictly increasing stamps after the own queue, with a zero slop."""
         counters = self.counters
-        name, other_name = INPUT_NAMES[index], INPUT_NAMES[1 - index]
-        own, own_values = self._stamps[index], self._values[index]
-        other, other_values = self._stamps[1 - index], self._values[1 - index]
         if stamps.size == 0:
             return Pairs.empty()
+        parked = self._parked[1 - index]
+        own_empty = not self._stamps[index] and self._parked[index] is None
         if (
-            not own
-            and len(other) == stamps.size
-            and other[0] == stamps[0]
-            and other[-1] == stamps[-1]
-            and other == stamps.tolist()
+            own_empty
+            and parked is not None
+            and parked[0].size == stamps.size
+            and np.array_equal(parked[0], stamps)
         ):  # the other input queued exactly these stamps: all pair, nothing is left
             counters.matched += stamps.size
             self._last[index] = self._last[1 - index] = int(stamps[-1])
-            other_picked = np.array(other_values, np.float64)
-            other.clear()
-            other_values.clear()
+            self._parked[1 - index] = None
             if index == 0:
-                return Pairs(stamps, values, other_picked)
-            return Pairs(stamps, other_picked, values)
+                return Pairs(stamps, values, parked[1])
+            return Pairs(stamps, parked[1], values)
+        if (
+            own_empty
+            and not self._stamps[1 - index]
+            and stamps.size <= self._queue_size
+            and (parked is None or int(stamps[0]) > int(parked[0][-1]))
+        ):  # nothing can pair (the other queue is empty or wholly older, the slop zero): park
+            self._parked[index] = (stamps.copy(), values.copy())
+            return Pairs.empty()
+        self._unpark()
+        name, other_name = INPUT_NAMES[index], INPUT_NAMES[1 - index]
+        own, own_values = self._stamps[index], self._values[index]
+        other, other_values = self._stamps[1 - index], self._values[1 - index]
         common = np.empty(0, np.int64)
         if other:
             other_array = np.array(other, dtype=np.int64)
@@ -537,10 +562,14 @@ class PairMatcher:
     # -- state -----------------------------------------------------------------------------------
     def pending(self) -> tuple[int, int]:
         """Queued, still unmatched samples per input, ``(tc1, tc2)``."""
-        return len(self._stamps[0]), len(self._stamps[1])
+        return tuple(  # type: ignore[return-value]
+            len(queue) if parked is None else int(parked[0].size)
+            for queue, parked in zip(self._stamps, self._parked, strict=True)
+        )
 
     def discard_pending(self) -> None:
         """Drop the queued samples, counted ``unmatched``: the end of a record."""
+        self._unpark()
         for index, name in enumerate(INPUT_NAMES):
             queue = self._stamps[index]
             if queue:
@@ -558,6 +587,7 @@ class PairMatcher:
         """
         for queue in (*self._stamps, *self._values):
             queue.clear()
+        self._parked[:] = [None, None]
         self._last[:] = [-math.inf, -math.inf]
         vars(self.counters).update(vars(PairCounters()))
 

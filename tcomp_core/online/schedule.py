@@ -54,6 +54,8 @@ __all__ = ["REF", "EngineStep", "ScheduledEngine"]
 REF = 2
 
 _Samples = tuple[NDArray[np.int64], NDArray[np.float64]]
+#: A batch ready to run: samples per input and its newest tc1/tc2 stamp (None: no tc sample).
+_Ready = tuple[dict[int, _Samples], int | None]
 
 
 @dataclass(frozen=True)
@@ -125,7 +127,7 @@ class ScheduledEngine:
         self._next_report = 0
         self._next_batch = 0  # the lowest batch that has not run
         self._held: dict[int, list[_Samples]] = {0: [], 1: [], REF: []}
-        self._ready: list[dict[int, _Samples]] = []  # complete batches not yet drained
+        self._ready: list[_Ready] = []  # complete batches not yet drained
         self._newest_batch: dict[int, int] = {}  # tc input -> batch of its newest stamp
         #: Re-estimations and health reports made so far.
         self.estimates = 0
@@ -175,6 +177,7 @@ class ScheduledEngine:
         """Run the batches below ``stop`` (all with None)."""
         assert self._t0 is not None
         groups: dict[int, dict[int, _Samples]] = {}
+        newest: dict[int, int] = {}  # batch -> its newest tc1/tc2 stamp
         for index, parts in self._held.items():
             if not parts:
                 continue
@@ -192,17 +195,17 @@ class ScheduledEngine:
             if batch.size > 1 and np.any(batch[1:] < batch[:-1]):
                 order = np.argsort(batch, kind="stable")
                 stamps, values, batch = stamps[order], values[order], batch[order]
-            edges = np.flatnonzero(np.diff(batch)) + 1
-            for begin, end in zip(
-                (0, *edges.tolist()), (*edges.tolist(), batch.size), strict=True
-            ):
-                groups.setdefault(int(batch[begin]), {})[index] = (
-                    stamps[begin:end],
-                    values[begin:end],
-                )
+            begins = np.concatenate(([0], np.flatnonzero(batch[1:] != batch[:-1]) + 1))
+            ends = [*begins[1:].tolist(), batch.size]
+            maxima = np.maximum.reduceat(stamps, begins).tolist()
+            for begin, end, most in zip(begins.tolist(), ends, maxima, strict=True):
+                key = int(batch[begin])
+                groups.setdefault(key, {})[index] = (stamps[begin:end], values[begin:end])
+                if index != REF:
+                    newest[key] = max(newest.get(key, most), most)
         if groups:
             self._next_batch = max(groups) + 1
-        self._ready += [groups[key] for key in sorted(groups)]
+        self._ready += [(groups[key], newest.get(key)) for key in sorted(groups)]
         return self._drain(final=stop is None)
 
     def _drain(self, final: bool) -> list[EngineStep]:
@@ -217,30 +220,31 @@ class ScheduledEngine:
                     break
                 end = len(ready) - 1
             group, ready[: end + 1] = ready[: end + 1], []
-            steps.append(self._run(_merge(group)))
+            lasts = [last for _, last in group if last is not None]
+            steps.append(
+                self._run(_merge([batch for batch, _ in group]), max(lasts, default=None))
+            )
         return steps
 
     def _group_end(self, limit: int) -> int | None:
         """Index of the last ready batch of the next group (None: not complete yet)."""
-        counts = [0, 0]
-        for k, batch in enumerate(self._ready):
-            sizes = [batch[i][0].size if i in batch else 0 for i in (0, 1)]
-            if k and any(count + size > limit for count, size in zip(counts, sizes, strict=True)):
+        count1 = count2 = 0
+        due = min(self._next_update, self._next_report)
+        for k, (batch, last) in enumerate(self._ready):
+            count1 += batch[0][0].size if 0 in batch else 0
+            count2 += batch[1][0].size if 1 in batch else 0
+            if k and (count1 > limit or count2 > limit):
                 return k - 1
-            counts = [count + size for count, size in zip(counts, sizes, strict=True)]
-            stamps = [batch[i][0] for i in (0, 1) if i in batch]
-            last = max(int(part.max()) for part in stamps) if stamps else None
-            if last is not None and (last >= self._next_update or last >= self._next_report):
+            if last is not None and last >= due:
                 return k
         return None
 
-    def _run(self, batch: dict[int, _Samples]) -> EngineStep:
+    def _run(self, batch: dict[int, _Samples], last: int | None) -> EngineStep:
+        """Drain ``batch`` whose newest tc1/tc2 stamp is ``last`` (None: reference alone)."""
         engine = self.engine
         ref = batch.get(REF, (np.empty(0, np.int64), np.empty(0)))
-        tcs = [batch[i] for i in (0, 1) if i in batch]
-        if not tcs:
+        if last is None:
             return EngineStep(Pairs.empty(), ref, GasBatch.empty(), None, None, None, 0)
-        last = max(int(stamps.max()) for stamps, _ in tcs)
         now = last * 1e-9
         for index in (0, 1):
             if index in batch:
