@@ -13,6 +13,8 @@ ROS_WHEELS = [
     "ros-sensor-msgs==5.3.6",
     "ros-diagnostic-msgs==5.3.6",
     "ros-std-msgs==5.3.6",
+    "ros-rosgraph-msgs==2.0.3",  # /clock of the replay node
+    "ros-rcl-interfaces==2.0.3",  # parameter descriptors
     "ros-rmw-fastrtps-cpp==8.4.3",
 ]
 
@@ -40,7 +42,14 @@ setup(
     ],
     extras_require={
         "ros": ROS_WHEELS,
-        "test": ["pytest>=8", "ruff>=0.5", "mypy>=2", "scipy-stubs>=1.17", "pybag-sdk==0.13.0"],
+        "test": [
+            "pytest>=8",
+            "hypothesis>=6.100",  # property-based fuzzing of the readers, the CLI and the node
+            "ruff>=0.5",
+            "mypy>=2",
+            "scipy-stubs>=1.17",
+            "pybag-sdk==0.13.0",
+        ],
     },
     zip_safe=True,
     entry_points={
