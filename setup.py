@@ -1,6 +1,7 @@
 """One distribution holding the numerical core (tcomp_core) and the ROS 2 nodes (tcomp_ros)."""
 
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
@@ -30,15 +31,23 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE_NAME}"]),
         (f"share/{PACKAGE_NAME}", ["package.xml"]),
         (f"share/{PACKAGE_NAME}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE_NAME}/bags", ["bags/README.md"]),
+        # The sample bags (tcomp_core.bundled finds them here once installed).
+        *(
+            (f"share/{PACKAGE_NAME}/{bag}", sorted(glob(f"{bag}/*")))
+            for bag in sorted(glob("bags/*"))
+            if Path(bag, "metadata.yaml").is_file()
+        ),
     ],
     install_requires=[
         "numpy>=1.26",
         "scipy>=1.11",
         "rosbags>=0.10",
-        "mcap>=1.1",
+        "ruamel.yaml>=0.17",  # metadata.yaml and QoS profiles (rosbags depends on it too)
         "zstandard>=0.22",  # MCAP chunk compression (tcomp process reads and writes chunks)
         "lz4>=4.0",
         "matplotlib>=3.8",
+        "tqdm>=4.60",  # progress bar of tcomp process
     ],
     extras_require={
         "ros": ROS_WHEELS,
@@ -48,6 +57,7 @@ setup(
             "ruff>=0.5",
             "mypy>=2",
             "scipy-stubs>=1.17",
+            "mcap>=1.1",  # a third-party reader of the bags we write
             "pybag-sdk==0.13.0",
         ],
     },

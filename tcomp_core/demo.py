@@ -15,6 +15,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from .bundled import bundled_bag
 from .cli import main as tcomp
 
 __all__ = ["main"]
@@ -34,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--effect-bag",
         type=Path,
-        default=Path("bags/conduction_500hz"),
+        default=bundled_bag("conduction_500hz"),
         help="bag with a hidden effect to diagnose",
     )
     args = parser.parse_args(argv)

@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+from tcomp_core.bundled import bundled_bag
+
 __all__ = ["main"]
 
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
@@ -21,7 +23,7 @@ LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 def main(argv: list[str] | None = None) -> int:
     """Replay ``--bag`` at ``--rate`` into a compensator; print its diagnostics."""
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--bag", type=Path, default=Path("bags/rig_sine_5khz"))
+    parser.add_argument("--bag", type=Path, default=bundled_bag("rig_sine_5khz"))
     parser.add_argument("--rate", type=float, default=1.0, help="replay speed factor")
     parser.add_argument(
         "--param",
