@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
 
@@ -73,10 +73,16 @@ __all__ = ["CompensatorNode", "main"]
 
 #: Period of the timer that drains the inbox, match pairs and publishes, seconds.
 PROCESS_PERIOD_S = 0.005
-INPUT_QOS = QoSProfile(
+#: Reliability of the input subscriptions by ``input_reliability``. Best effort (the default)
+#: receives from best-effort publishers (sensor drivers, REP 2003's SensorDataQoS) and reliable
+#: ones alike; reliable receives from reliable publishers only.
+INPUT_RELIABILITY = {
+    "best_effort": ReliabilityPolicy.BEST_EFFORT,
+    "reliable": ReliabilityPolicy.RELIABLE,
+}
+OUTPUT_QOS = QoSProfile(
     depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
 )
-OUTPUT_QOS = INPUT_QOS
 #: The background diagnosis needs a gap-free stretch of the window this long, seconds ...
 MIN_DIAGNOSIS_S = 2.0
 #: ... holding at least this many samples.
@@ -88,7 +94,8 @@ MIN_DIAGNOSIS_PERIOD_S = 1.0
 
 
 def _float_range(low: float, high: float) -> list[FloatingPointRange]:
-    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+    # float(): an int given to the float64 fields is advertised as garbage (5e-324).
+    return [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
 
 
 def _descriptor(description: str, **kwargs) -> ParameterDescriptor:
@@ -204,6 +211,45 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
         ),
     ),
     "frame_id": ("", _descriptor("frame_id of gas_temperature ('' = that of tc1)")),
+    "input_reliability": (
+        "best_effort",
+        _descriptor(
+            "reliability of the tc1/tc2 subscriptions: best_effort receives from best-effort "
+            "and reliable publishers alike, reliable from reliable ones only (read at start)",
+            additional_constraints=f"one of {', '.join(INPUT_RELIABILITY)}",
+            read_only=True,
+        ),
+    ),
+    "min_temperature_c": (
+        -273.15,
+        _descriptor(
+            "readings below are invalid (counted, reported, left out), degrees C",
+            floating_point_range=_float_range(-273.15, 1e6),
+        ),
+    ),
+    "max_temperature_c": (
+        2000.0,
+        _descriptor(
+            "readings above are invalid (counted, reported, left out), degrees C",
+            floating_point_range=_float_range(-273.15, 1e6),
+        ),
+    ),
+    "max_window_samples": (
+        500_000,
+        _descriptor(
+            "memory budget of the window in sample pairs (48 bytes each): a window_s that "
+            "needs more at sample_period_s is refused, a learnt period clips the window",
+            integer_range=[IntegerRange(from_value=100, to_value=10**8, step=1)],
+        ),
+    ),
+    "discontinuity_s": (
+        10.0,
+        _descriptor(
+            "stamps this far behind the last matched one, several in a row, restart the "
+            "window (a clock reset or a bag starting over), s",
+            floating_point_range=_float_range(0.001, 1e9),
+        ),
+    ),
     "effects": (
         "",
         _descriptor(
@@ -239,6 +285,10 @@ ENGINE_PARAMETERS = (
     "sample_period_s",
     "max_condition",
     "max_model_error_pct",
+    "min_temperature_c",
+    "max_temperature_c",
+    "max_window_samples",
+    "discontinuity_s",
 )
 
 
@@ -270,7 +320,8 @@ class CompensatorNode(Node):
         self._inbox: list[tuple[list[int], list[float]]] = [([], []), ([], [])]
         self._received = [0, 0]
         self._frame_id = ""
-        self._engine_errors = 0
+        self._callback_errors = 0
+        self._last_callback_error = ""
         self._latency = LatencyHistogram()
         self._diagnoser = BackgroundDiagnoser()
         self._diagnosis: dict[str, Any] = {}  # the latest successful diagnosis
@@ -284,16 +335,28 @@ class CompensatorNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._gas_pub = self.create_publisher(Temperature, "gas_temperature", OUTPUT_QOS)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        reliability = str(self._values["input_reliability"])
+        if reliability not in INPUT_RELIABILITY:
+            raise ValueError(
+                f"input_reliability={reliability!r} is not one of {', '.join(INPUT_RELIABILITY)}"
+            )
+        input_qos = QoSProfile(
+            depth=1000,
+            history=HistoryPolicy.KEEP_LAST,
+            reliability=INPUT_RELIABILITY[reliability],
+        )
         for index, topic in enumerate(("tc1/temperature", "tc2/temperature")):
             self.create_subscription(
-                Temperature, topic, partial(self._on_sample, index), INPUT_QOS, raw=True
+                Temperature, topic, partial(self._on_sample, index), input_qos, raw=True
             )
         self._encoder = Encoder("")
         self.create_timer(PROCESS_PERIOD_S, self._process)
         self._estimate_timer = self.create_timer(
             self._values["update_period_s"], self.update_estimate
         )
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self.publish_diagnostics)
+        self.create_timer(
+            DIAGNOSTICS_PERIOD_S, lambda: self._guarded("diagnostics", self.publish_diagnostics)
+        )
         self._diagnosis_timer: Timer | None = None
         self._start_diagnosis_timer()
 
@@ -341,7 +404,9 @@ class CompensatorNode(Node):
             self._diagnosis_timer = None
         period = float(self._values["diagnosis_period_s"])
         if period > 0.0:
-            self._diagnosis_timer = self.create_timer(period, self._periodic_diagnosis)
+            self._diagnosis_timer = self.create_timer(
+                period, lambda: self._guarded("diagnosis", self._periodic_diagnosis)
+            )
 
     def _periodic_diagnosis(self) -> None:
         """Diagnose while the first-order fit is poor or effects are set; else spare the CPU.
@@ -371,7 +436,7 @@ class CompensatorNode(Node):
         changed = {name for name in values if values[name] != self._values[name]}
         self._values = values
         if changed & set(ENGINE_PARAMETERS):
-            self._engine.compensator.reconfigure(self._engine_config(values))
+            self._engine.reconfigure(self._engine_config(values))
         if changed & {"sync_slop_s", "queue_size"}:
             self._engine.set_matching(
                 round(float(values["sync_slop_s"]) * 1e9), int(values["queue_size"])
@@ -400,13 +465,21 @@ class CompensatorNode(Node):
 
     # -- data path ---------------------------------------------------------------------------
     def _on_sample(self, index: int, data: bytes) -> None:
-        """Subscription callback: decode the stamp and value and put them in the inbox."""
+        """Subscription callback: decode the stamp and value and put them in the inbox.
+
+        A message that cannot be decoded is counted (``malformed_tc1/2``), reported in the
+        diagnostics and skipped: the callback never raises into the executor.
+        """
         try:
-            stamp, frame_id, value, _ = decode_message(data)
-        except ValueError:  # another CDR layout: let rclpy decode it
-            message = deserialize_message(data, Temperature)
-            stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
-            frame_id, value = message.header.frame_id, message.temperature
+            stamp, frame_id, value = self._decode(data)
+        except Exception as exc:  # any bytes may arrive on a topic; none may stop the node
+            reason = f"{len(data)} bytes: {type(exc).__name__}: {exc}"[:200]
+            self._engine.malformed(index, reason)
+            self.get_logger().warning(
+                f"{('tc1', 'tc2')[index]}: malformed message skipped ({reason})",
+                throttle_duration_sec=5.0,
+            )
+            return
         self._received[index] += 1
         if index == 0 and not self._frame_id:
             self._frame_id = frame_id
@@ -414,8 +487,31 @@ class CompensatorNode(Node):
         stamps.append(stamp)
         values.append(value)
 
+    @staticmethod
+    def _decode(data: bytes) -> tuple[int, str, float]:
+        """Stamp (ns), frame_id and value of a serialized Temperature."""
+        try:
+            stamp, frame_id, value, _ = decode_message(data)
+        except ValueError:  # another CDR layout: let rclpy decode it
+            message = deserialize_message(data, Temperature)
+            stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+            frame_id, value = message.header.frame_id, message.temperature
+        return int(stamp), str(frame_id), float(value)
+
+    def _guarded(self, what: str, callback: Callable[[], object]) -> None:
+        """Run a timer's work; an exception is counted, logged and reported, never raised."""
+        try:
+            callback()
+        except Exception as exc:  # the node must outlive any input
+            self._callback_errors += 1
+            self._last_callback_error = f"{what}: {type(exc).__name__}: {exc}"[:200]
+            self.get_logger().error(self._last_callback_error, throttle_duration_sec=5.0)
+
     def _process(self) -> None:
         """Timer: hand the inbox to the engine and publish the gas samples it reconstructs."""
+        self._guarded("process", self._process_inbox)
+
+    def _process_inbox(self) -> None:
         now = self._now()
         engine = self._engine
         for index in (0, 1):
@@ -426,8 +522,9 @@ class CompensatorNode(Node):
         try:
             out = engine.reconstruct()
         except DataError as exc:  # never die on data: count, report, carry on
-            self._engine_errors += 1
-            self.get_logger().warning(f"pairs refused: {exc}", throttle_duration_sec=5.0)
+            self._callback_errors += 1
+            self._last_callback_error = f"pairs refused: {exc}"[:200]
+            self.get_logger().warning(self._last_callback_error, throttle_duration_sec=5.0)
             return
         if not out.stamps_ns.size:
             return
@@ -451,7 +548,7 @@ class CompensatorNode(Node):
 
     def update_estimate(self) -> None:
         """Re-estimate τ1, τ2 now (the timer calls this every ``update_period_s``)."""
-        self._engine.update_estimate(self._now())
+        self._guarded("estimate", lambda: self._engine.update_estimate(self._now()))
 
     # -- background diagnosis ----------------------------------------------------------------
     def _diagnosis_segment(self) -> np.ndarray | None:
@@ -549,7 +646,12 @@ class CompensatorNode(Node):
             Start a new report period (the diagnostics timer does).
         """
         now = self._now()
-        extra = {**self._diagnosis_values(now), **self._latency.summary()}
+        extra = {
+            **self._diagnosis_values(now),
+            **self._latency.summary(),
+            "callback_errors": str(self._callback_errors),
+            "last_callback_error": self._last_callback_error,
+        }
         health: Health = self._engine.report(now, extra, new_period=new_period)
         message = health.message
         status = self._engine.last_status
@@ -629,8 +731,8 @@ def main(args: Sequence[str] | None = None) -> int:
     rclpy.init(args=None if args is None else list(args))
     try:
         node = CompensatorNode()
-    except (ParameterException, ValueError) as exc:  # a bad value given at start
-        print(f"compensator_node: error: {exc}", file=sys.stderr)
+    except (ParameterException, ValueError, TypeError) as exc:  # a bad value given at start
+        print(f"compensator_node: error: {' '.join(str(exc).split())}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
     try:

@@ -7,7 +7,9 @@ namespaces and remapping apply. Header stamps are the bag's, to the nanosecond. 
 the bag restarts and its stamps are shifted by its length plus :data:`LOOP_GAP_STEPS` sample
 steps, so they keep increasing and a consumer that watches for gaps (the compensator does) never
 links the last sample of one pass to the first of the next: the sensors' states jump there.
-``publish_clock`` publishes ``/clock`` with the bag time for ``use_sim_time`` consumers.
+``publish_clock`` publishes ``/clock`` with the bag time for ``use_sim_time`` consumers. The
+replay runs on a steady wall-clock timer whatever ``use_sim_time`` says: under simulated time a
+ROS timer would wait for the very clock this node is meant to publish.
 
 ``source: simulate`` generates live two-thermocouple data (:mod:`tcomp_core.simulate`) stamped
 from the node's clock instead.
@@ -28,6 +30,9 @@ from typing import Any
 import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -53,7 +58,8 @@ SIMULATED_LOOP_S = 60.0
 
 
 def _range(low: float, high: float) -> list[FloatingPointRange]:
-    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+    # float(): an int given to the float64 fields is advertised as garbage (5e-324).
+    return [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
 
 
 PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
@@ -114,6 +120,8 @@ class ReplayNode(Node):
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.rate = float(value["rate"])
         self.loop = bool(value["loop"])
+        if value["signal"] not in SIGNALS:
+            raise DataError(f"signal={value['signal']!r} is not one of {', '.join(SIGNALS)}")
         if value["source"] == "bag":
             self._load_bag(Path(str(value["bag"])))
         elif value["source"] == "simulate":
@@ -131,7 +139,7 @@ class ReplayNode(Node):
         self._next = 0
         self._pass = 0
         self._started = time.monotonic()
-        self.create_timer(TICK_S, self._tick)
+        self.create_timer(TICK_S, self._tick, clock=RosClock(clock_type=ClockType.STEADY_TIME))
 
     def _load_bag(self, path: Path) -> None:
         if not str(path) or str(path) == ".":
@@ -219,8 +227,8 @@ def main(args: Sequence[str] | None = None) -> int:
     rclpy.init(args=None if args is None else list(args))
     try:
         node = ReplayNode()
-    except DataError as exc:
-        rclpy.logging.get_logger("replay").error(str(exc))
+    except (DataError, ParameterException, ValueError, TypeError) as exc:  # a bad parameter
+        print(f"replay_node: error: {' '.join(str(exc).split())}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
     except (KeyboardInterrupt, ExternalShutdownException):  # stopped while loading

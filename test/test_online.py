@@ -14,7 +14,7 @@ from tcomp_core.online import (
     OnlineConfig,
     ScheduledEngine,
 )
-from tcomp_core.online.health import LIVE_ONLY_KEYS, NO_DIAGNOSIS
+from tcomp_core.online.health import LIVE_ONLY_KEYS, NO_DIAGNOSIS, NO_LATENCY
 from tcomp_core.reconstruct import reconstruct
 from tcomp_core.tracking import varying_lag_response
 
@@ -283,7 +283,7 @@ def test_health_errors_name_the_silent_or_invalid_sensor(pair_factory):
     engine.add_samples(0, [10**18], [float("nan")], now + 1.6)
     engine.add_samples(1, [10**18], [20.0], now + 1.6)
     invalid = engine.report(now + 1.7)
-    assert invalid.level == Level.ERROR and "tc1 sent 1 non-finite value(s)" in invalid.message
+    assert invalid.level == Level.ERROR and "tc1 sent 1 invalid value(s)" in invalid.message
     assert invalid.values["invalid_tc1"] == "1"
     assert engine.report(now + 1.8).level == Level.OK  # the report period moved on
 
@@ -301,7 +301,7 @@ def test_health_warns_on_a_refused_estimate():
     assert health.level == Level.STALE and status.reason in health.message
     keys = list(health.values)
     assert keys[-len(NO_DIAGNOSIS) - len(LIVE_ONLY_KEYS) :] == [*NO_DIAGNOSIS, *LIVE_ONLY_KEYS]
-    assert all(health.values[key] == "nan" for key in LIVE_ONLY_KEYS)
+    assert all(health.values[key] == NO_LATENCY[key] for key in LIVE_ONLY_KEYS)
 
 
 # -- schedule ------------------------------------------------------------------------------------
@@ -328,3 +328,79 @@ def test_schedule_does_not_depend_on_the_reading_chunks(pair_factory):
         np.testing.assert_array_equal(other_gas, gas)
         assert other_reports == reports
     assert len(reports) == int(pair.time[-1] - pair.time[0])
+
+
+# -- guards against hostile input (issue 13) -----------------------------------------------------
+def test_values_outside_the_physical_range_are_invalid_in_tcomp_process(tmp_path, pair_factory):
+    from tcomp_core.io import write_csv
+    from tcomp_core.process import ProcessConfig, process
+
+    pair = pair_factory()
+    tc1 = pair.tc1.copy()
+    tc1[[300, 301]] = [1e308, -300.0]  # finite, but no thermocouple reads them
+    source = tmp_path / "in.csv"
+    write_csv(source, pair.time, tc1, pair.tc2)
+    result = process(source, tmp_path / "out.csv", ProcessConfig(diagnose=False))
+    table = np.genfromtxt(tmp_path / "out.csv", delimiter=",", names=True)
+    gas = table["gas"][~np.isnan(table["gas"])]  # empty cells: pairs not reconstructed
+    assert gas.size > pair.tc1.size - 10
+    assert np.abs(gas).max() < 1e4  # finite and bounded
+    assert result.counters["invalid_tc1"] == 2
+    assert any("outside the physical range" in warning for warning in result.warnings)
+
+
+def test_configured_range_applies_and_is_checked():
+    engine = Engine(OnlineConfig(min_temperature_c=0.0, max_temperature_c=100.0))
+    stamps = 10**18 + np.arange(4, dtype=np.int64)
+    engine.add_samples(0, stamps, [50.0, -1.0, 101.0, np.inf], 0.0)
+    assert engine.counters.invalid == [3, 0]
+    with pytest.raises(ValueError, match="min_temperature_c"):
+        OnlineConfig(min_temperature_c=-300.0)
+    with pytest.raises(ValueError, match="max_temperature_c"):
+        OnlineConfig(max_temperature_c=np.inf)
+
+
+def test_stamps_jumping_back_restart_the_engine_and_resume(pair_factory):
+    pair = pair_factory()
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+    engine = Engine(OnlineConfig())
+    half = stamps.size // 2
+    for index, values in ((0, pair.tc1), (1, pair.tc2)):
+        engine.add_samples(index, stamps[:half], values[:half], 1.0)
+    first = engine.reconstruct()
+    engine.update_estimate(1.0)
+    # A clock reset: the second half arrives stamped an hour earlier.
+    back = stamps[half:] - 3600 * 10**9
+    for index, values in ((0, pair.tc1), (1, pair.tc2)):
+        engine.add_samples(index, back, values[half:], 2.0)
+    second = engine.reconstruct()
+    assert engine.counters.discontinuities == 1
+    assert engine.counters.last_discontinuity_ns == int(back[0])
+    assert second.stamps_ns.size >= stamps.size - half - 5  # not a silent outage
+    assert engine.counters.out_of_order == 0  # the run that made the jump was not lost
+    assert first.stamps_ns.size > 0 and engine.compensator.tau is not None
+    health = engine.report(2.0)
+    assert "stamps jumped back" in health.message and health.level >= Level.WARN
+    assert health.values["discontinuities"] == "1"
+
+
+def test_one_late_message_is_out_of_order_not_a_discontinuity(pair_factory):
+    pair = pair_factory()
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+    engine = Engine(OnlineConfig())
+    for index, values in ((0, pair.tc1), (1, pair.tc2)):
+        engine.add_samples(index, stamps, values, 1.0)
+    engine.add_samples(0, stamps[:1] - 3600 * 10**9, pair.tc1[:1], 1.0)
+    assert engine.counters.discontinuities == 0 and engine.counters.out_of_order == 1
+
+
+def test_window_is_bounded_in_samples_whatever_the_period():
+    with pytest.raises(ValueError, match="max_window_samples"):
+        OnlineConfig(window_s=2.0, sample_period_s=1e-9)
+    engine = Engine(OnlineConfig(max_window_samples=1000))
+    stamps = 10**18 + np.arange(5000, dtype=np.int64)  # 1 ns apart: a 2e9-sample window
+    rng = np.random.default_rng(3)
+    engine.add_samples(0, stamps, 20 + rng.standard_normal(5000), 0.0)
+    engine.add_samples(1, stamps, 20 + rng.standard_normal(5000), 0.0)
+    engine.reconstruct()
+    assert engine.compensator.window_samples <= 1000

@@ -68,6 +68,9 @@ class ReferenceMatcher:
             "duplicates": self.duplicates,
             "invalid_tc1": 0,
             "invalid_tc2": 0,
+            "malformed_tc1": 0,
+            "malformed_tc2": 0,
+            "discontinuities": 0,
         }
 
 
@@ -138,6 +141,9 @@ def test_exact_stamps_pair_in_any_interleaving(order):
         "duplicates": 0,
         "invalid_tc1": 0,
         "invalid_tc2": 0,
+        "malformed_tc1": 0,
+        "malformed_tc2": 0,
+        "discontinuities": 0,
     }
     assert matcher.pending() == (0, 0)
 
@@ -357,6 +363,9 @@ def test_counters_as_dict_pending_and_reset():
         "duplicates": 1,
         "invalid_tc1": 0,
         "invalid_tc2": 0,
+        "malformed_tc1": 0,
+        "malformed_tc2": 0,
+        "discontinuities": 0,
     }
     assert matcher.pending() == (1, 0)
     counters = matcher.counters

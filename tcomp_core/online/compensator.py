@@ -65,6 +65,7 @@ class OnlineCompensator:
         self._learning: list[tuple[NDArray[np.int64], NDArray, NDArray]] = []
         self._previous: tuple[int, float, float] | None = None
         self._newest_stamp = 0
+        self._restarted = False  # the next pair need not follow _newest_stamp
         self.last_status: EstimateStatus | None = None
         self.counters = {"pairs": 0, "gaps": 0, "reconstructed": 0, "unreconstructed": 0}
         # Pairs that arrived before the first τ: (stamps, tc1, tc2, steps_s, contiguous).
@@ -115,6 +116,22 @@ class OnlineCompensator:
         if self._estimator is None:
             return np.empty((0, 2))
         return self._estimator.longest_segment()
+
+    def restart(self) -> None:
+        """Forget the window and the reconstruction state, keep τ and the sample period.
+
+        After a discontinuity of the stamps (:class:`~.engine.Engine`): the next pair may be
+        stamped before the newest one taken, and starts a new window.
+        """
+        held = sum(run[3].size for run in self._backlog)
+        self.counters["unreconstructed"] += int(held)
+        self._backlog, self._backlog_rows = [], 0
+        self._learning = []
+        self._estimator = None
+        self._previous = None
+        self._postfilter = None
+        self._reconstructor = None  # Eq. (7) with the kept τ until the next estimate lands
+        self._restarted = True
 
     def reconfigure(self, config: OnlineConfig) -> None:
         """Apply new settings, keeping the window's samples where they still fit."""
@@ -175,13 +192,15 @@ class OnlineCompensator:
             return GasBatch.empty()
         if not (np.isfinite(first).all() and np.isfinite(second).all()):
             raise DataError("non-finite temperature in a matched pair")
-        previous = self._newest_stamp if self.counters["pairs"] else stamps[0] - 1
+        fresh = self._restarted or not self.counters["pairs"]
+        previous = stamps[0] - 1 if fresh else self._newest_stamp
         steps = np.diff(stamps, prepend=previous)
         if np.any(steps <= 0):
             index = int(np.flatnonzero(steps <= 0)[0])
             raise DataError(f"pair stamp {int(stamps[index])} ns does not increase")
         self.counters["pairs"] += stamps.size
         self._newest_stamp = int(stamps[-1])
+        self._restarted = False
         if self._period is None:
             self._learning.append((stamps, first, second))
             if sum(batch[0].size for batch in self._learning) < PERIOD_LEARNING_SAMPLES:

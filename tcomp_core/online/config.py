@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from ..choices import RECONSTRUCT_FROM, RECONSTRUCTIONS, SIGNAL_MODELS, ReconstructFrom
 from ..estimators import METHODS, Estimate
+from ..validation import MIN_SAMPLES
 
 __all__ = [
     "FIRST_ESTIMATE_ROWS",
@@ -44,6 +45,8 @@ FUSION_FIT_SAMPLES = 4096
 #: The long-term ratio τ1/τ2 of the tracking estimator forgets over this many tracking memories
 #: (or the window, if longer).
 RATIO_MEMORY_FACTOR = 10.0
+#: Bytes the window holds per sample pair (a buffer twice the window of three float64 columns).
+WINDOW_BYTES_PER_SAMPLE = 48
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,6 +83,16 @@ class OnlineConfig:
         Estimates whose conditioning figure exceeds this are not accepted.
     max_model_error_pct : float
         Model error (fit error beyond the noise floor) above which the fit counts as poor.
+    min_temperature_c, max_temperature_c : float
+        Physical range of a reading, degrees C: samples outside it (or not finite) are invalid,
+        counted and left out of estimation and output.
+    max_window_samples : int
+        Memory budget of the window, in sample pairs (:data:`WINDOW_BYTES_PER_SAMPLE` bytes
+        each): a ``window_s`` that needs more at ``sample_period_s`` is refused, and a window
+        sized from a learnt period is clipped to it.
+    discontinuity_s : float
+        Stamps this far (seconds) behind the last matched stamp, several in a row, are a
+        discontinuity (a clock reset, a replayed bag starting over): the engine restarts.
     """
 
     window_s: float = 2.0
@@ -96,6 +109,15 @@ class OnlineConfig:
     gap_factor: float = 1.5
     max_condition: float = 1e3
     max_model_error_pct: float = 10.0
+    min_temperature_c: float = -273.15
+    max_temperature_c: float = 2000.0
+    max_window_samples: int = 500_000
+    discontinuity_s: float = 10.0
+
+    @property
+    def valid_range(self) -> tuple[float, float]:
+        """``(min_temperature_c, max_temperature_c)``."""
+        return self.min_temperature_c, self.max_temperature_c
 
     def __post_init__(self) -> None:
         checks = [
@@ -125,10 +147,31 @@ class OnlineConfig:
             (self.gap_factor > 1.0, f"gap_factor={self.gap_factor!r} must be > 1"),
             (self.max_condition >= 1.0, f"max_condition={self.max_condition!r} must be >= 1"),
             (self.max_model_error_pct > 0.0, "max_model_error_pct must be > 0"),
+            (
+                -273.15 <= self.min_temperature_c < self.max_temperature_c < math.inf,
+                f"min_temperature_c={self.min_temperature_c!r}, max_temperature_c="
+                f"{self.max_temperature_c!r}: need -273.15 <= min < max, both finite",
+            ),
+            (
+                MIN_SAMPLES <= self.max_window_samples <= 10**8,
+                f"max_window_samples={self.max_window_samples!r} must lie in [{MIN_SAMPLES}, 1e8]",
+            ),
+            (
+                math.isfinite(self.discontinuity_s) and self.discontinuity_s > 0.0,
+                f"discontinuity_s={self.discontinuity_s!r} must be > 0 s",
+            ),
         ]
         for holds, message in checks:
             if not holds:
                 raise ValueError(message)
+        if self.sample_period_s > 0.0:
+            needed = self.window_s / self.sample_period_s
+            if needed > self.max_window_samples:
+                raise ValueError(
+                    f"window_s={self.window_s!r} at sample_period_s={self.sample_period_s!r} "
+                    f"needs {needed:.3g} samples ({needed * WINDOW_BYTES_PER_SAMPLE / 1e6:.3g} "
+                    f"MB), above max_window_samples={self.max_window_samples}"
+                )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from .compensator import OnlineCompensator
@@ -25,6 +26,9 @@ __all__ = ["DIAGNOSTICS_PERIOD_S", "Engine", "stale_after_s"]
 #: Period of the diagnostics, seconds (as diagnostic_updater's default); the node's timer and
 #: the offline schedule's report cadence.
 DIAGNOSTICS_PERIOD_S = 1.0
+#: Consecutive samples of one input stamped ``discontinuity_s`` behind the last matched stamp
+#: that make a discontinuity (one late message is only out of order).
+DISCONTINUITY_SAMPLES = 5
 
 
 def stale_after_s(update_period_s: float) -> float:
@@ -59,7 +63,12 @@ class Engine:
         silence_timeout_s: float = 1.0,
     ) -> None:
         self.compensator = OnlineCompensator(config)
-        self.matcher = PairMatcher(slop_ns=slop_ns, queue_size=queue_size)
+        self.matcher = PairMatcher(
+            slop_ns=slop_ns, queue_size=queue_size, valid_range=config.valid_range
+        )
+        self._behind = [0, 0]  # per input: trailing samples far behind the last matched stamp
+        #: Why the latest message of each input could not be decoded ('' when none failed).
+        self.last_malformed = ["", ""]
         self.monitor = HealthMonitor(silence_timeout_s, stale_after_s(update_period_s))
         self._pairs: list[Pairs] = []
         #: Gas samples reconstructed so far.
@@ -77,7 +86,24 @@ class Engine:
 
     def set_matching(self, slop_ns: int, queue_size: int) -> None:
         """A new pair matcher (its queues and counters start empty)."""
-        self.matcher = PairMatcher(slop_ns=slop_ns, queue_size=queue_size)
+        self.matcher = PairMatcher(
+            slop_ns=slop_ns,
+            queue_size=queue_size,
+            valid_range=self.compensator.config.valid_range,
+        )
+
+    def reconfigure(self, config: OnlineConfig) -> None:
+        """Apply new compensator settings (and the physical range of the readings)."""
+        if config.valid_range != self.compensator.config.valid_range:
+            counters = self.matcher.counters
+            self.set_matching(self.matcher.slop_ns, self.matcher.queue_size)
+            self.matcher.counters = counters
+        self.compensator.reconfigure(config)
+
+    def malformed(self, index: int, reason: str) -> None:
+        """Count a message of input ``index`` that could not be decoded, and why."""
+        self.matcher.counters.malformed[index] += 1
+        self.last_malformed[index] = reason
 
     def set_timing(self, update_period_s: float, silence_timeout_s: float) -> None:
         """New re-estimation period and silence timeout, seconds."""
@@ -97,12 +123,55 @@ class Engine:
         now : float
             Seconds on the caller's clock.
         """
+        stamps = np.asarray(stamps_ns)
+        vals = np.asarray(values, dtype=np.float64)
+        last = self.matcher.last_matched_ns
+        if last is not None and stamps.size and stamps.dtype.kind in "iu":
+            far = round(self.compensator.config.discontinuity_s * 1e9)
+            behind = stamps.astype(np.int64, copy=False) < last - far
+            if behind.any():
+                start = self._discontinuity_start(index, behind)
+                if start is not None:
+                    self._match(index, stamps[:start], vals[:start], now)
+                    self._restart(int(stamps[start]))
+                    stamps, vals = stamps[start:], vals[start:]
+            else:
+                self._behind[index] = 0
+        self._match(index, stamps, vals, now)
+
+    def _match(self, index: int, stamps: ArrayLike, values: ArrayLike, now: float) -> None:
         received = self.matcher.counters.received[index]
-        pairs = self.matcher.add_batch(index, stamps_ns, values)
+        pairs = self.matcher.add_batch(index, stamps, values)
         if len(pairs):
             self._pairs.append(pairs)
         if self.matcher.counters.received[index] > received:
             self.monitor.heard(index, now)
+
+    def _discontinuity_start(self, index: int, behind: np.ndarray) -> int | None:
+        """Where the run of far-behind samples that makes a discontinuity starts, if one does.
+
+        Updates the count of trailing far-behind samples of input ``index`` otherwise.
+        """
+        run = self._behind[index]
+        for position, far_behind in enumerate(behind.tolist()):
+            run = run + 1 if far_behind else 0
+            if run >= DISCONTINUITY_SAMPLES:
+                self._behind = [0, 0]
+                # Samples of the run from earlier calls were dropped as out of order already.
+                return max(0, position - DISCONTINUITY_SAMPLES + 1)
+        self._behind[index] = run
+        return None
+
+    def _restart(self, stamp_ns: int) -> None:
+        """Start over from ``stamp_ns`` after a discontinuity: matcher, window, reconstruction."""
+        self.matcher.restart()
+        dropped = sum(len(pairs) for pairs in self._pairs)
+        self.compensator.counters["unreconstructed"] += dropped  # stamped after the jump
+        self._pairs = []
+        self.compensator.restart()
+        counters = self.matcher.counters
+        counters.discontinuities += 1
+        counters.last_discontinuity_ns = stamp_ns
 
     def take_pairs(self) -> Pairs:
         """The pairs matched since the last call (and hand them over to the caller)."""
@@ -153,6 +222,7 @@ class Engine:
             counters=self.matcher.counters,
             published=self.published,
             max_model_error_pct=self.compensator.config.max_model_error_pct,
+            malformed_reasons=self.last_malformed,
             extra=extra,
             new_period=new_period,
         )

@@ -79,6 +79,7 @@ class WindowEstimator:
         self._config, self._period = config, period_s
         if (
             config.window_s != old.window_s
+            or config.max_window_samples != old.max_window_samples
             or period_s != old_period
             or (config.method, config.phi) != (old.method, old.phi)
         ):
@@ -108,7 +109,8 @@ class WindowEstimator:
         )
 
     def _new_window(self) -> SlidingBetaWindow:
-        capacity = max(MIN_SAMPLES, round(self._config.window_s / self._period))
+        wanted = round(self._config.window_s / self._period)
+        capacity = max(MIN_SAMPLES, min(wanted, self._config.max_window_samples))
         method = self._config.method if self._config.method in BETA_METHODS else "beta-gtls"
         return SlidingBetaWindow(capacity, self._period, method, self._config.phi)
 

@@ -20,7 +20,7 @@ puts its closing diagnosis on ``/diagnosis`` instead.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
 
@@ -70,12 +70,15 @@ NO_DIAGNOSIS: dict[str, str] = {
     "diagnosis_error": "",
 }
 DIAGNOSIS_KEYS: tuple[str, ...] = tuple(NO_DIAGNOSIS)
-#: Keys that only make sense live: publish latency against the wall clock, milliseconds.
+#: Keys that only make sense live: publish latency against the wall clock, milliseconds, and
+#: the node's callbacks that failed (counted and reported, never raised into the executor).
 NO_LATENCY: dict[str, str] = {
     "latency_p50_ms": "nan",
     "latency_p99_ms": "nan",
     "latency_max_ms": "nan",
     "latency_p99_total_ms": "nan",
+    "callback_errors": "0",
+    "last_callback_error": "",
 }
 LIVE_ONLY_KEYS: tuple[str, ...] = tuple(NO_LATENCY)
 
@@ -205,7 +208,8 @@ def assess(
             errors.append(f"{sensor.name} {silent}")
         if sensor.invalid_since_report:
             errors.append(
-                f"{sensor.name} sent {sensor.invalid_since_report} non-finite value(s), "
+                f"{sensor.name} sent {sensor.invalid_since_report} invalid value(s) "
+                "(not finite or outside the physical range), "
                 f"last at stamp {sensor.last_invalid_ns * 1e-9:.6f} s"
             )
     if errors:
@@ -249,6 +253,8 @@ class HealthMonitor:
         self._report_time = math.nan
         self._received_at_report = [0, 0]
         self._invalid_at_report = [0, 0]
+        self._malformed_at_report = [0, 0]
+        self._discontinuities_at_report = 0
 
     def heard(self, index: int, now: float) -> None:
         """Input ``index`` delivered samples at ``now`` (seconds)."""
@@ -273,6 +279,7 @@ class HealthMonitor:
         counters: PairCounters,
         published: int,
         max_model_error_pct: float,
+        malformed_reasons: Sequence[str] = ("", ""),
         extra: Mapping[str, str] = NO_DIAGNOSIS | NO_LATENCY,
         new_period: bool = True,
     ) -> Health:
@@ -289,6 +296,8 @@ class HealthMonitor:
             Gas samples published so far.
         max_model_error_pct : float
             Model error above which the fit is poor, percent.
+        malformed_reasons : sequence of str, length 2
+            Why the latest undecodable message of each input failed ('' when none did).
         extra : mapping of str to str
             The diagnosis and latency key-values (:data:`NO_DIAGNOSIS`, :data:`NO_LATENCY`
             offline).
@@ -316,6 +325,9 @@ class HealthMonitor:
             "duplicates": str(counters.duplicates),
             "invalid_tc1": str(counters.invalid[0]),
             "invalid_tc2": str(counters.invalid[1]),
+            "malformed_tc1": str(counters.malformed[0]),
+            "malformed_tc2": str(counters.malformed[1]),
+            "discontinuities": str(counters.discontinuities),
             "published": str(published),
             "estimate_age_s": format_value(age),
             **extra,
@@ -337,9 +349,30 @@ class HealthMonitor:
             status=status,
             max_model_error_pct=max_model_error_pct,
         )
+        notes = self._input_notes(counters, malformed_reasons)
+        if notes:
+            # Never hidden behind an OK: at least a WARN, appended to any other message.
+            message = "; ".join(notes if level == Level.OK else [message, *notes])
+            level = max(level, Level.WARN)
         if not new_period:
             return Health(level, message, values)
         self._report_time = now
         self._received_at_report = list(counters.received)
         self._invalid_at_report = list(counters.invalid)
+        self._malformed_at_report = list(counters.malformed)
+        self._discontinuities_at_report = counters.discontinuities
         return Health(level, message, values)
+
+    def _input_notes(self, counters: PairCounters, reasons: Sequence[str]) -> list[str]:
+        """Malformed messages and discontinuities since the last report, in words."""
+        notes = []
+        for i, name in enumerate(INPUT_NAMES):
+            count = counters.malformed[i] - self._malformed_at_report[i]
+            if count:
+                notes.append(f"{name}: {count} malformed message(s) skipped ({reasons[i]})")
+        if counters.discontinuities > self._discontinuities_at_report:
+            notes.append(
+                "stamps jumped back: window restarted at stamp "
+                f"{counters.last_discontinuity_ns * 1e-9:.6f} s"
+            )
+        return notes

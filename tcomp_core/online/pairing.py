@@ -13,7 +13,9 @@ what a compensator, which integrates the pairs in time, needs:
   arrive later with a stamp at or before that input's last matched stamp are dropped as
   out of order;
 * a tie between two candidates equally far away goes to the older one;
-* non-finite values are dropped (``invalid_tc1``, ``invalid_tc2``) before they reach a queue;
+* values that are not finite or lie outside the physical range (``valid_range``: by default
+  below absolute zero or above 2 000 °C) are dropped (``invalid_tc1``, ``invalid_tc2``) before
+  they reach a queue;
 * every sample is accounted for (:class:`PairCounters`).
 
 Two entry points give the same pairs and counters on the same input: :meth:`PairMatcher.add`
@@ -38,7 +40,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DataError
 
-__all__ = ["COUNTER_NAMES", "INPUT_NAMES", "Pair", "PairCounters", "PairMatcher", "Pairs"]
+__all__ = [
+    "COUNTER_NAMES",
+    "DEFAULT_VALID_RANGE",
+    "INPUT_NAMES",
+    "Pair",
+    "PairCounters",
+    "PairMatcher",
+    "Pairs",
+]
 
 #: Names of the two inputs, in index order.
 INPUT_NAMES = ("tc1", "tc2")
@@ -58,7 +68,14 @@ COUNTER_NAMES = (
     "duplicates",
     "invalid_tc1",
     "invalid_tc2",
+    "malformed_tc1",
+    "malformed_tc2",
+    "discontinuities",
 )
+
+#: Physical range of a thermocouple reading by default, degrees C: absolute zero to 2 000 °C
+#: (above type K's and type N's range; type B/R/S reach 1 700-1 800 °C).
+DEFAULT_VALID_RANGE = (-273.15, 2000.0)
 
 
 @dataclass
@@ -84,12 +101,20 @@ class PairCounters:
     duplicates : int
         Samples dropped because a sample with the same stamp was already queued on that input.
     invalid : list of int, length 2
-        Samples per input dropped because their value is not finite.
+        Samples per input dropped because their value is not finite or lies outside the
+        matcher's physical range.
     first_dropped : dict of str to int
         Stamp (ns) of the first sample dropped for each reason, keyed by counter name
         (``unmatched_tc1``, ``out_of_order``, ...), for warnings that name it.
     last_invalid_ns : list of int, length 2
-        Stamp of the latest non-finite sample per input, ns (0 before the first).
+        Stamp of the latest invalid sample per input, ns (0 before the first).
+    malformed : list of int, length 2
+        Messages per input that could not be decoded (counted by the engine's caller; they
+        never reach the matcher and are not in ``received``).
+    discontinuities : int
+        Times the stamps jumped back so far that the engine restarted (:class:`~.engine.Engine`).
+    last_discontinuity_ns : int
+        Stamp the latest restart resumed from, ns (0 before the first).
     """
 
     received: list[int] = field(default_factory=lambda: [0, 0])
@@ -100,6 +125,9 @@ class PairCounters:
     invalid: list[int] = field(default_factory=lambda: [0, 0])
     first_dropped: dict[str, int] = field(default_factory=dict)
     last_invalid_ns: list[int] = field(default_factory=lambda: [0, 0])
+    malformed: list[int] = field(default_factory=lambda: [0, 0])
+    discontinuities: int = 0
+    last_discontinuity_ns: int = 0
 
     @property
     def total_unmatched(self) -> int:
@@ -118,6 +146,9 @@ class PairCounters:
             "duplicates": self.duplicates,
             "invalid_tc1": self.invalid[0],
             "invalid_tc2": self.invalid[1],
+            "malformed_tc1": self.malformed[0],
+            "malformed_tc2": self.malformed[1],
+            "discontinuities": self.discontinuities,
         }
 
     def _dropped(self, name: str, stamp: int) -> None:
@@ -194,6 +225,9 @@ class PairMatcher:
         only.
     queue_size : int, optional
         Unmatched samples kept per input, ``>= 1``; beyond it the oldest is evicted.
+    valid_range : (float, float), optional
+        Lowest and highest plausible reading, degrees C (the engine passes its configured
+        range, :data:`DEFAULT_VALID_RANGE` by default); None: any finite value.
 
     Raises
     ------
@@ -209,7 +243,7 @@ class PairMatcher:
     -----
     On each sample of input ``i`` with stamp ``s`` and value ``v``:
 
-    0. ``v`` not finite: dropped, counted ``invalid``;
+    0. ``v`` not finite, or outside ``valid_range`` if given: dropped, counted ``invalid``;
     1. ``s`` at or before the last matched stamp of input ``i``: dropped, counted
        ``out_of_order``;
     2. ``s`` already queued on input ``i``: dropped, counted ``duplicates``;
@@ -242,13 +276,25 @@ class PairMatcher:
     1
     """
 
-    def __init__(self, slop_ns: int = 0, queue_size: int = 1000) -> None:
+    def __init__(
+        self,
+        slop_ns: int = 0,
+        queue_size: int = 1000,
+        valid_range: tuple[float, float] | None = None,
+    ) -> None:
         slop_ns = _integer("slop_ns", slop_ns)
         queue_size = _integer("queue_size", queue_size)
         if slop_ns < 0:
             raise DataError(f"slop_ns must be >= 0 ns, got {slop_ns}")
         if queue_size < 1:
             raise DataError(f"queue_size must be >= 1, got {queue_size}")
+        if valid_range is not None:
+            low, high = (float(v) for v in valid_range)
+            if not -273.15 <= low < high < math.inf:
+                raise DataError(
+                    f"valid_range={valid_range!r} must be increasing, finite, from -273.15 °C up"
+                )
+        self._valid_range = valid_range
         self._slop = slop_ns
         self._queue_size = queue_size
         self.counters = PairCounters()
@@ -293,7 +339,8 @@ class PairMatcher:
         """
         _check_index(index)
         self.counters.received[index] += 1
-        if not math.isfinite(value):
+        valid = self._valid_range
+        if not (math.isfinite(value) if valid is None else valid[0] <= value <= valid[1]):
             self.counters.invalid[index] += 1
             self.counters.last_invalid_ns[index] = stamp_ns
             self.counters._dropped(f"invalid_{INPUT_NAMES[index]}", stamp_ns)
@@ -444,7 +491,9 @@ class PairMatcher:
             raise DataError(f"{INPUT_NAMES[index]}: {stamps.size} stamps but {vals.size} values")
         counters = self.counters
         counters.received[index] += int(stamps.size)
-        finite = np.isfinite(vals)
+        valid = self._valid_range
+        # A finite range is False for NaN and ±inf too.
+        finite = np.isfinite(vals) if valid is None else (vals >= valid[0]) & (vals <= valid[1])
         if not finite.all():
             bad = stamps[~finite]
             counters.invalid[index] += int(bad.size)
@@ -577,6 +626,21 @@ class PairMatcher:
                 self.counters.unmatched[index] += len(queue)
                 queue.clear()
                 self._values[index].clear()
+
+    @property
+    def last_matched_ns(self) -> int | None:
+        """Stamp of the newest matched sample of either input, ns (None before the first)."""
+        last = max(self._last)
+        return None if last == -math.inf else int(last)
+
+    def restart(self) -> None:
+        """Start over after a discontinuity of the stamps, keeping the counters.
+
+        The queued samples are counted ``unmatched`` (:meth:`discard_pending`) and the ordering
+        forgets the last matched stamps, so samples stamped before them pair again.
+        """
+        self.discard_pending()
+        self._last[:] = [-math.inf, -math.inf]
 
     def reset(self) -> None:
         """Return to the freshly constructed state: empty queues, no ordering, zero counters.

@@ -269,15 +269,21 @@ def _dropped_warnings(source: Path, counters: PairCounters) -> list[str]:
         "unmatched_tc2": "tc2 samples without a tc1 sample to pair with",
         "out_of_order": "samples stamped at or before a pair already processed",
         "duplicates": "samples repeating a stamp",
-        "invalid_tc1": "non-finite tc1 temperatures",
-        "invalid_tc2": "non-finite tc2 temperatures",
+        "invalid_tc1": "tc1 temperatures not finite or outside the physical range",
+        "invalid_tc2": "tc2 temperatures not finite or outside the physical range",
     }
     values = counters.as_dict()
-    return [
+    warnings = [
         f"{source}: dropped {values[name]} {text} (the first stamped {format_stamp(stamp)})"
         for name, text in what.items()
         if (stamp := counters.first_dropped.get(name)) is not None
     ]
+    if counters.discontinuities:
+        warnings.append(
+            f"{source}: the stamps jumped back {counters.discontinuities} time(s); the window "
+            f"restarted there (the last at {format_stamp(counters.last_discontinuity_ns)})"
+        )
+    return warnings
 
 
 class _RefJoin:
@@ -398,7 +404,8 @@ def _run(
         compensator = engine.compensator
         if isinstance(sink, CsvOutput) and compensator.period_s:
             period = compensator.period_s
-            sink.keep_rows = round((config.online.window_s + 2 * config.batch_s) / period) + 256
+            rows = round((config.online.window_s + 2 * config.batch_s) / period)
+            sink.keep_rows = min(rows, 2 * config.online.max_window_samples) + 256
         for step in steps:
             pairs = step.pairs
             ref = join_ref(step)

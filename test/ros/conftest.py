@@ -9,6 +9,7 @@ import itertools
 import os
 import time
 
+import node_harness
 import pytest
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -50,3 +51,27 @@ def ros_context(ros_domain_id):
 @pytest.fixture
 def spin_until():
     return spin_until_condition
+
+
+@pytest.fixture
+def harness(ros_context, spin_until):
+    from rclpy.executors import SingleThreadedExecutor
+
+    made = []
+
+    def make(**parameters):
+        made.append(
+            node_harness.Harness(
+                ros_context,
+                lambda context: SingleThreadedExecutor(context=context),
+                spin_until,
+                **parameters,
+            )
+        )
+        return made[-1]
+
+    yield make
+    for item in made:
+        item.executor.shutdown()
+        item.node.destroy_node()
+        item.peer.destroy_node()

@@ -7,8 +7,8 @@ the serialized bytes it would receive, the inbox is drained every ``batch_s`` of
 re-estimated every ``update_period_s`` and the diagnostics published every second. What the node
 hands to its ``gas_temperature`` and ``/diagnostics`` publishers is compared with the bag
 ``tcomp process`` writes: gas sample for sample, bit for bit; diagnostics status for status, key
-for key, level for level and value for value, except the live-only latency
-(:data:`tcomp_core.online.health.LIVE_ONLY_KEYS`), which is ``nan`` offline.
+for key, level for level and value for value, except the live-only latency and callback errors
+(:data:`tcomp_core.online.health.LIVE_ONLY_KEYS`), which read as ``NO_LATENCY`` offline.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from tcomp_core.io import decode_message as decode
 from tcomp_core.online import DIAGNOSTICS_PERIOD_S, OnlineConfig
-from tcomp_core.online.health import LIVE_ONLY_KEYS
+from tcomp_core.online.health import LIVE_ONLY_KEYS, NO_LATENCY
 from tcomp_core.process import ProcessConfig, process
 from tcomp_ros.compensator import CompensatorNode
 
@@ -153,7 +153,7 @@ def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path,
         assert [key for key, _ in offline_values] == [key for key, _ in live_values]
         for (key, value), (_, live_value) in zip(offline_values, live_values, strict=True):
             if key in LIVE_ONLY_KEYS:
-                assert value == "nan"
+                assert value == NO_LATENCY[key]
             else:
                 assert value == live_value, key
     levels = {live.level[0] for _, live in node_statuses}
