@@ -84,7 +84,10 @@ def plot_reconstruction(
 
 
 def _save(figure: Figure, path: str | Path) -> Path:
+    """Save under a temporary name, then rename (the caller has decided to replace ``path``)."""
+    from .io import atomic_output
+
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(target, dpi=110)
+    with atomic_output(target, overwrite=True) as temporary:
+        figure.savefig(temporary, dpi=110, format=target.suffix.lstrip(".") or "png")
     return target

@@ -403,7 +403,13 @@ def _html(diagnosis: Diagnosis) -> str:
     )
 
 
-def write_report(diagnosis: Diagnosis, directory: str | Path) -> Path:
+def write_report(
+    diagnosis: Diagnosis,
+    directory: str | Path,
+    *,
+    overwrite: bool = False,
+    inputs: Iterable[Path] = (),
+) -> Path:
     """Write the diagnosis as one self-contained ``index.html``.
 
     Parameters
@@ -411,7 +417,12 @@ def write_report(diagnosis: Diagnosis, directory: str | Path) -> Path:
     diagnosis : Diagnosis
         What :func:`tcomp_core.diagnose.diagnose` found.
     directory : str or Path
-        Where to write (created if missing).
+        Where to write: a directory of its own, written whole under a temporary name and
+        renamed (:func:`tcomp_core.io.atomic_output`).
+    overwrite : bool
+        Replace an existing report directory.
+    inputs : iterable of Path
+        The data the diagnosis read: the report may not overlap them.
 
     Returns
     -------
@@ -419,8 +430,11 @@ def write_report(diagnosis: Diagnosis, directory: str | Path) -> Path:
         The path of ``index.html``. Sections: summary, model vs measurement, residuals, where
         it fails, suspects, error staircase, reconstructions, notes.
     """
+    from .io import atomic_output
+
     target = Path(directory)
-    target.mkdir(parents=True, exist_ok=True)
-    path = target / "index.html"
-    path.write_text(_html(diagnosis), encoding="utf-8")
-    return path
+    page = _html(diagnosis)
+    with atomic_output(target, overwrite, inputs, directory=True) as temporary:
+        temporary.mkdir()
+        (temporary / "index.html").write_text(page, encoding="utf-8")
+    return target / "index.html"

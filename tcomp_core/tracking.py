@@ -36,7 +36,7 @@ from .estimators.result import Estimate, estimate_from_poles
 from .estimators.scatter import beta_rows, beta_scatter, equilibrated_condition
 from .models import tau_to_pole
 from .noise import estimate_noise
-from .validation import check_finite, check_pair, check_sample_interval
+from .validation import check_excitation, check_finite, check_pair, check_sample_interval
 
 __all__ = [
     "ForgettingEstimator",
@@ -267,6 +267,7 @@ def track_tau(
         record (centred).
     """
     first, second = check_pair(tc1, tc2)
+    check_excitation(first, second)
     dt = check_sample_interval(dt)
     if not (memory_s > 0.0 and step_s > 0.0):
         raise ValueError(f"{memory_s=} and {step_s=} must be > 0 s")

@@ -138,7 +138,7 @@ def test_existing_csv_is_not_overwritten(tmp_path, arrays):
     time, tc1, tc2, _ = arrays
     target = tmp_path / "x.csv"
     target.write_text("precious")
-    with pytest.raises(DataError, match=r"x\.csv exists; pass overwrite"):
+    with pytest.raises(DataError, match=r"x\.csv exists; pass --force"):
         write_csv(target, time, tc1, tc2)
     assert target.read_text() == "precious"
     write_csv(target, time, tc1, tc2, overwrite=True)
@@ -385,7 +385,7 @@ def test_bag_opens_with_the_mcap_reader(tmp_path, arrays):
 def test_existing_bag_is_not_overwritten(tmp_path, arrays):
     time, tc1, tc2, _ = arrays
     path = write_bag(tmp_path / "bag", time, {TC1: tc1, TC2: tc2})
-    with pytest.raises(DataError, match=r"bag exists; pass overwrite"):
+    with pytest.raises(DataError, match=r"bag exists; pass --force"):
         write_bag(path, time, {TC1: tc2, TC2: tc1})
     np.testing.assert_array_equal(read_bag(path).tc1, tc1)
     write_bag(path, time, {TC1: tc2, TC2: tc1}, overwrite=True)

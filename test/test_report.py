@@ -155,7 +155,7 @@ def test_report_without_effects_or_reference(tmp_path):
         ref_error_pct={},
         notes=[],
     )
-    html = write_report(bare, tmp_path).read_text(encoding="utf-8")
+    html = write_report(bare, tmp_path / "report").read_text(encoding="utf-8")
     assert "Verdict: none" in html
     assert "No effect was tried." in html
     assert html.count("data:image/png;base64,") == 5

@@ -21,6 +21,7 @@ import argparse
 import sys
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Protocol, TextIO
 
 from .. import __version__
@@ -36,6 +37,7 @@ from . import (
     sweep,
     track,
 )
+from .common import check_outputs, output_paths
 
 __all__ = ["VERBS", "build_parser", "main"]
 
@@ -83,12 +85,37 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
         warnings.simplefilter("always", TcompWarning)
+        # numpy's arithmetic warnings on hostile data are noise beside the one error line.
+        warnings.simplefilter("ignore", RuntimeWarning)
         warnings.showwarning = _warning_printer(args.verb, warnings.showwarning)
         try:
+            check_outputs(args)
             return args.handler(args)
         except (TcompError, ValueError, OSError) as exc:
-            print(f"tcomp {args.verb}: error: {exc}", file=sys.stderr)
+            print(f"tcomp {args.verb}: error: {_naming_the_file(exc, args)}", file=sys.stderr)
             return 1
+        except (ArithmeticError, LookupError, MemoryError, RecursionError) as exc:
+            # A failure on data no check foresaw: still one line naming the file, no traceback.
+            what = f"{type(exc).__name__}: {exc}"
+            print(
+                f"tcomp {args.verb}: error: {_naming_the_file(what, args)} (unexpected on this "
+                "input; please report it)",
+                file=sys.stderr,
+            )
+            return 1
+
+
+def _naming_the_file(error: BaseException | str, args: argparse.Namespace) -> str:
+    """The error's text, prefixed with the input's path unless it already names a file."""
+    text = " ".join(str(error).split())  # one line
+    if isinstance(error, OSError) and error.filename is not None and error.strerror:
+        text = f"{error.filename}: {error.strerror}"
+    data = getattr(args, "data", None)
+    named = [data] if data is not None else []
+    named += [path for path, _ in output_paths(args)]
+    if data is None or any(str(path) in text or Path(path).name in text for path in named):
+        return text
+    return f"{data}: {text}"
 
 
 def _warning_printer(verb: str, fallback: _ShowWarning) -> _ShowWarning:

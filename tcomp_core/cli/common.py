@@ -25,9 +25,11 @@ __all__ = [
     "add_force_argument",
     "add_output_argument",
     "add_source_arguments",
+    "check_outputs",
     "effect_list",
     "estimate_with",
     "non_negative_float",
+    "output_paths",
     "phi_or_auto",
     "positive_float",
     "read_data",
@@ -237,3 +239,55 @@ def estimate_with(record: Record, args: argparse.Namespace, method: str) -> Esti
         alpha=args.alpha if method == "tdr-kee" else None,
         prefilter_hz=args.prefilter_hz,
     )
+
+
+#: Options naming an output, and whether it is a directory (``-o`` is one unless ``*.csv``).
+_OUTPUT_OPTIONS = {"output": None, "json": False, "png": False, "report": True}
+
+
+def output_paths(args: argparse.Namespace) -> list[tuple[Path, bool]]:
+    """Every output a verb's arguments name, with whether it is a directory.
+
+    ``-o`` (one or several), ``--json FILE``, ``--png`` and ``--report DIR``; ``-o`` is a bag
+    directory unless it ends in ``.csv`` (``tcomp process`` on a directory of inputs: a
+    directory of outputs).
+    """
+    found = []
+    for option, directory in _OUTPUT_OPTIONS.items():
+        value = getattr(args, option, None)
+        for path in value if isinstance(value, list) else [value]:
+            if isinstance(path, Path):
+                is_directory = directory if directory is not None else path.suffix != ".csv"
+                found.append((path, is_directory))
+    return found
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Before any work: refuse outputs that overlap the input, repeat, or exist without --force.
+
+    Raises
+    ------
+    DataError
+        Naming the output (and the input it would overwrite).
+    """
+    from ..errors import DataError
+    from ..io.outputs import check_output, overlaps
+    from ..io.paths import is_bag_directory
+
+    data = getattr(args, "data", None)
+    inputs = [data] if isinstance(data, Path) else []
+    # process on a directory of inputs writes a directory of outputs, each checked as it goes.
+    batch = isinstance(data, Path) and data.is_dir() and not is_bag_directory(data)
+    outputs = output_paths(args)
+    for index, (path, directory) in enumerate(outputs):
+        for other, _ in outputs[:index]:
+            if overlaps(path, other):
+                raise DataError(f"{path}: named twice as an output (or inside {other})")
+        for source in inputs:
+            if overlaps(path, source):
+                raise DataError(
+                    f"{path}: the output would overwrite or sit inside the input {source} (or "
+                    "contain it); choose another output path"
+                )
+        if not batch:
+            check_output(path, bool(getattr(args, "force", False)), inputs, directory=directory)

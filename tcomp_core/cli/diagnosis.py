@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .common import add_force_argument
+
 if TYPE_CHECKING:
     from ..diagnose import Diagnosis
 
@@ -14,24 +16,27 @@ __all__ = ["add_outputs", "format_diagnosis", "write_diagnosis"]
 
 
 def add_outputs(parser: argparse.ArgumentParser) -> None:
-    """Add ``--report DIR`` (HTML report) and ``--json FILE`` to a verb's parser."""
+    """Add ``--report DIR`` (HTML report), ``--json FILE`` and ``--force`` to a verb's parser."""
     parser.add_argument("--report", type=Path, metavar="DIR", help="write an HTML report here")
     parser.add_argument("--json", type=Path, metavar="FILE", help="write the results as JSON")
+    add_force_argument(parser, "replace an existing --report or --json")
 
 
 def write_diagnosis(diagnosis: Diagnosis, args: argparse.Namespace) -> int:
     """Print the diagnosis, write ``--json`` and ``--report`` if given; returns exit status 0."""
     from ..diagnose import diagnosis_to_dict
+    from ..io import atomic_output
 
     print(format_diagnosis(diagnosis))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(diagnosis_to_dict(diagnosis), indent=2) + "\n")
+        with atomic_output(args.json, args.force, [args.data]) as temporary:
+            temporary.write_text(json.dumps(diagnosis_to_dict(diagnosis), indent=2) + "\n")
         print(f"json: {args.json}")
     if args.report:
         from ..report import write_report  # matplotlib only when a report is asked for
 
-        print(f"report: {write_report(diagnosis, args.report)}")
+        report = write_report(diagnosis, args.report, overwrite=args.force, inputs=[args.data])
+        print(f"report: {report}")
     return 0
 
 

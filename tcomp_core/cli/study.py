@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..choices import SIGNALS
-from .common import Verbs, positive_float
+from .common import Verbs, add_force_argument, positive_float
 
 __all__ = ["add_parser", "run"]
 
@@ -30,6 +30,7 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--png", type=Path, default=Path("out/study.png"), help="figure path")
     parser.add_argument("--json", type=Path, help="also write the table as JSON to this file")
+    add_force_argument(parser, "replace an existing --png or --json")
     parser.set_defaults(handler=run)
     return parser
 
@@ -51,7 +52,9 @@ def run(args: argparse.Namespace) -> int:
     print(summarise_findings(check_findings(result)))
     print(f"wrote {plot_study(result, args.png)}")
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result.to_dict(), indent=2))
+        from ..io import atomic_output
+
+        with atomic_output(args.json, args.force) as temporary:
+            temporary.write_text(json.dumps(result.to_dict(), indent=2))
         print(f"wrote {args.json}")
     return 0

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from ..choices import METHODS
-from .common import Verbs, add_data_arguments, positive_float, read_data
+from .common import Verbs, add_data_arguments, add_force_argument, positive_float, read_data
 
 __all__ = ["add_parser", "run"]
 
@@ -29,6 +29,7 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     )
     parser.add_argument("--png", type=Path, help="write the Fig. 10 plot to this PNG")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_force_argument(parser, "replace an existing --png")
     parser.set_defaults(handler=run)
     return parser
 

@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         raise TcompError(f"{args.data}: no window of {args.memory_s:g} s gave an estimate")
     _print_track(track, found, float(record.time[0]))
     if args.output is not None:
-        _write_track(args.output, track, float(record.time[0]))
+        _write_track(args.output, track, float(record.time[0]), args)
         print(f"wrote {args.output}: {track.time.size} estimates")
     return 0
 
@@ -121,9 +121,13 @@ def _print_track(track: TauTrack, found: NDArray[np.bool_], start_s: float) -> N
         print(f"{missing} of {found.size} windows gave no estimate (NaN in the CSV)")
 
 
-def _write_track(path: Path, track: TauTrack, start_s: float) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as stream:
+def _write_track(path: Path, track: TauTrack, start_s: float, args: argparse.Namespace) -> None:
+    from ..io import atomic_output
+
+    with (
+        atomic_output(path, args.force, [args.data]) as temporary,
+        temporary.open("w", newline="") as stream,
+    ):
         writer = csv.writer(stream)
         writer.writerow(["time", "tau1", "tau2"])
         for row in zip(start_s + track.time, track.tau1, track.tau2, strict=True):

@@ -17,9 +17,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
-from ..errors import DataError
+from ..errors import DataError, NoExcitationError
 from ..io import Record
 from ..noise import NoiseEstimate, estimate_noise, signal_band_edge
+from ..validation import check_excitation
 
 __all__ = ["PreparedData", "block_length_s", "prepare"]
 
@@ -125,7 +126,18 @@ def prepare(record: Record) -> PreparedData:
     ------
     DataError
         If the record is too short to hold estimation and validation blocks.
+    NoExcitationError
+        If a signal is constant (nothing to diagnose).
     """
+    if record.tc1.size < MIN_WORKING_SAMPLES:  # before decimation too: nothing to measure
+        raise DataError(
+            f"{record.source}: {record.tc1.size} samples are too few to diagnose; need at "
+            f"least {MIN_WORKING_SAMPLES}"
+        )
+    try:
+        check_excitation(record.tc1, record.tc2)
+    except NoExcitationError as exc:
+        raise NoExcitationError(f"{record.source}: {exc}") from exc
     noise1, noise2 = estimate_noise(record.tc1, record.dt), estimate_noise(record.tc2, record.dt)
     edges = (
         signal_band_edge(record.tc1, record.dt, noise1.floor),

@@ -28,10 +28,10 @@ from .diagnostics import DiagnosticStatusFields, encode_diagnostic_array
 from .dispatch import read_record, write_series
 from .mcap_read import ChunkData, McapScan, Truncation, log_times, payloads
 from .mcap_write import McapBagWriter
+from .outputs import atomic_output, check_output, overlaps
 from .paths import (
     bag_files,
     bag_location,
-    clear_for_writing,
     is_bag_directory,
     is_csv,
     is_data_file,
@@ -80,10 +80,11 @@ __all__ = [
     "Record",
     "TemperatureBatch",
     "Truncation",
+    "atomic_output",
     "bag_files",
     "bag_location",
     "check_names",
-    "clear_for_writing",
+    "check_output",
     "column",
     "decode_message",
     "decode_payloads",
@@ -98,6 +99,7 @@ __all__ = [
     "log_times",
     "offered_qos",
     "open_stream",
+    "overlaps",
     "payloads",
     "read_bag",
     "read_csv",

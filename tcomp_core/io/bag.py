@@ -18,7 +18,7 @@ unchanged (and adds a gas temperature topic), both through the writer of ``tcomp
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +28,8 @@ from ..errors import DataError, TruncatedInputWarning
 from ..validation import check_finite
 from .mcap_read import McapScan, Truncation, payloads
 from .mcap_write import McapBagWriter
-from .paths import bag_files, bag_location, clear_for_writing
+from .outputs import atomic_output
+from .paths import bag_files, bag_location
 from .qos import offered_qos
 from .record import (
     DEFAULT_TOPICS,
@@ -244,6 +245,7 @@ def write_bag(
     overwrite: bool = False,
     compress: bool = False,
     start_ns: int = 0,
+    inputs: Iterable[Path] = (),
 ) -> Path:
     """Write temperature series as a rosbag2 (version 9) MCAP bag.
 
@@ -272,6 +274,9 @@ def write_bag(
         ``ros2 bag``, rosbags and the mcap tools).
     start_ns : int
         Added to every stamp, nanoseconds: ``time`` can then be relative to an exact epoch.
+    inputs : iterable of Path
+        Files the data were read from: the bag may not overlap them. It is written under a
+        temporary name and renamed when complete (:func:`~.outputs.atomic_output`).
 
     Returns
     -------
@@ -305,23 +310,23 @@ def write_bag(
             f"{path}: sample {index} is stamped {int(stamps[index])} ns; stamps must lie in "
             f"[0, {MAX_STAMP_NS}] ns (builtin_interfaces/msg/Time)"
         )
-    clear_for_writing(path, overwrite, bag=True)
     variances = {topic: float((variance or {}).get(topic, 0.0)) for topic in arrays}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    writer = McapBagWriter(path, compress=compress)
-    try:
-        channels = {
-            topic: writer.add_channel(topic, TEMPERATURE_TYPE, offered_qos()) for topic in arrays
-        }
-        for start in range(0, stamps.size, WRITE_BLOCK):
-            part = slice(start, start + WRITE_BLOCK)
-            for topic, channel in channels.items():
-                rows = encode(stamps[part], arrays[topic][part], variances[topic], frame_id)
-                writer.write_rows(channel, stamps[part], rows)
-        writer.close()
-    except BaseException:
-        writer.abort()
-        raise
+    with atomic_output(path, overwrite, inputs, directory=True) as temporary:
+        writer = McapBagWriter(temporary, compress=compress, name=path.name)
+        try:
+            channels = {
+                topic: writer.add_channel(topic, TEMPERATURE_TYPE, offered_qos())
+                for topic in arrays
+            }
+            for start in range(0, stamps.size, WRITE_BLOCK):
+                part = slice(start, start + WRITE_BLOCK)
+                for topic, channel in channels.items():
+                    rows = encode(stamps[part], arrays[topic][part], variances[topic], frame_id)
+                    writer.write_rows(channel, stamps[part], rows)
+            writer.close()
+        except BaseException:
+            writer.abort()
+            raise
     return path
 
 
@@ -375,12 +380,23 @@ def write_bag_copy(
     values = np.asarray(gas, dtype=np.float64)
     if stamps.shape != values.shape or stamps.ndim != 1:
         raise DataError(f"{path}: gas has shape {values.shape}, its stamps {stamps.shape}")
-    if any(path.resolve() in (file.resolve(), file.parent.resolve()) for file in origin.files):
-        raise DataError(f"{path}: the output would replace the input")
     rows = encode(stamps, values, 0.0, frame_id)
-    clear_for_writing(path, overwrite, bag=True)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    writer = McapBagWriter(path, compress=compress)
+    inputs = [*origin.files, *(file.parent for file in origin.files)]
+    with atomic_output(path, overwrite, inputs, directory=True) as temporary:
+        _copy_with_gas(temporary, path.name, origin, stamps, rows, compress)
+    return path
+
+
+def _copy_with_gas(
+    target: Path,
+    name: str,
+    origin: BagOrigin,
+    stamps: NDArray[np.int64],
+    rows: NDArray[np.uint8],
+    compress: bool,
+) -> None:
+    """The body of :func:`write_bag_copy`, writing the bag directory ``target``."""
+    writer = McapBagWriter(target, compress=compress, name=name)
     try:
         channels: dict[str, int] = {}
         scan = McapScan(origin.files, origin.topics, TEMPERATURE_TYPE, name=origin.files[0])
@@ -405,4 +421,3 @@ def write_bag_copy(
     except BaseException:
         writer.abort()
         raise
-    return path

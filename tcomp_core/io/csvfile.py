@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +19,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DataError
 from ..validation import check_finite
-from .paths import clear_for_writing
+from .outputs import atomic_output
+from .paths import check_regular_file
 from .record import DEFAULT_COLUMNS, Record, check_names, validated_record
 
 __all__ = ["read_csv", "write_csv"]
@@ -61,6 +62,8 @@ def read_csv(path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMN
     path = Path(path)
     tc1_name, tc2_name, ref_name = check_names(columns, DEFAULT_COLUMNS, "columns")
     try:
+        if path.exists():  # a FIFO or device would block or never end
+            check_regular_file(path)
         handle = path.open(newline="", encoding="utf-8-sig")
     except OSError as exc:
         raise DataError(f"{path}: cannot open CSV file: {exc.strerror}") from exc
@@ -159,6 +162,7 @@ def write_csv(
     *,
     extra: Mapping[str, ArrayLike] | None = None,
     overwrite: bool = False,
+    inputs: Iterable[Path] = (),
 ) -> Path:
     """Write ``time,tc1,tc2[,ref][,extra...]`` with full float64 precision.
 
@@ -179,6 +183,9 @@ def write_csv(
         Further columns appended in order (for example ``gas``).
     overwrite : bool
         Replace an existing file.
+    inputs : iterable of Path
+        Files the data were read from: the output may not overlap them
+        (:func:`~tcomp_core.io.outputs.atomic_output`, which writes the file).
 
     Returns
     -------
@@ -207,9 +214,10 @@ def write_csv(
     for name, values in columns.items():
         if values.shape != (length,):
             raise DataError(f"{path}: column {name!r} has shape {values.shape}, time ({length},)")
-    clear_for_writing(path, overwrite, bag=False)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as handle:
+    with (
+        atomic_output(path, overwrite, inputs) as temporary,
+        temporary.open("w", newline="", encoding="utf-8") as handle,
+    ):
         writer = csv.writer(handle, lineterminator="\n")
         writer.writerow(columns)
         # tolist() gives Python floats, which csv writes as repr(): shortest exact round trip.

@@ -56,7 +56,7 @@ from .mcap_records import (
     read_string,
     unpack_chunk,
 )
-from .paths import MCAP_MAGIC
+from .paths import MCAP_MAGIC, check_regular_file
 from .rows import column
 
 __all__ = [
@@ -241,7 +241,7 @@ class McapScan:
     def _read_file(self, file: Path) -> Iterator[ChunkData]:
         size = file.stat().st_size
         try:
-            handle = file.open("rb")
+            handle = check_regular_file(file).open("rb")
         except OSError as exc:
             raise DataError(f"{file}: cannot open: {exc.strerror}") from exc
         with handle:

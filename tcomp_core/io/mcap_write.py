@@ -137,6 +137,9 @@ class McapBagWriter:
         zstd-compress the chunks (level 1).
     chunk_bytes : int
         Uncompressed size at which a chunk is closed.
+    name : str, optional
+        Stem of the ``.mcap`` file (the directory's name by default; a bag written under a
+        temporary name and renamed later passes its final name).
 
     Notes
     -----
@@ -144,7 +147,14 @@ class McapBagWriter:
     their chunk is written: the caller must not change them afterwards.
     """
 
-    def __init__(self, path: Path, *, compress: bool = False, chunk_bytes: int = CHUNK_BYTES):
+    def __init__(
+        self,
+        path: Path,
+        *,
+        compress: bool = False,
+        chunk_bytes: int = CHUNK_BYTES,
+        name: str | None = None,
+    ):
         from rosbags.typesys import Stores, get_typestore
 
         self.path = Path(path)
@@ -157,7 +167,7 @@ class McapBagWriter:
             self._compressor = zstandard.ZstdCompressor(level=1)
         self._chunk_bytes = chunk_bytes
         self.path.mkdir(parents=True)
-        self.file = self.path / f"{self.path.name}.mcap"
+        self.file = self.path / f"{name or self.path.name}.mcap"
         self._handle = self.file.open("xb", buffering=0)
         self._sink = _OrderedSink(QUEUED_CHUNKS)
         self._schemas: dict[str, tuple[int, str]] = {}  # msgtype -> (id, definition)

@@ -1,4 +1,7 @@
-"""The one place that tells a CSV file from a bag, finds a bag's files and clears an output.
+"""The one place that tells a CSV file from a bag, finds a bag's files and checks an input.
+
+Inputs must be regular files (a FIFO or a device would block or never end) and a bag's
+``metadata.yaml`` may only name files inside its directory. Outputs: :mod:`.outputs`.
 
 A path is CSV when it ends in ``.csv``; a bag when it is a directory holding ``metadata.yaml``
 (rosbag2), an ``.mcap`` file (inside a bag directory: the whole bag; bare: that file alone), a
@@ -7,7 +10,7 @@ file starting with the MCAP magic bytes, or a path that does not exist yet (outp
 
 from __future__ import annotations
 
-import shutil
+import stat
 from pathlib import Path
 
 from ..errors import DataError
@@ -17,7 +20,7 @@ __all__ = [
     "bag_files",
     "bag_location",
     "check_readable_format",
-    "clear_for_writing",
+    "check_regular_file",
     "is_bag_directory",
     "is_csv",
     "is_data_file",
@@ -42,6 +45,43 @@ def is_data_file(path: Path) -> bool:
     return is_bag_directory(path) or (path.is_file() and path.suffix.lower() in (".mcap", ".csv"))
 
 
+#: Largest ``metadata.yaml`` read, bytes (real ones are a few kB).
+MAX_METADATA_BYTES = 16 * 2**20
+
+
+def check_regular_file(path: Path) -> Path:
+    """Refuse anything but a regular file: a FIFO or device would block or never end.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    DataError
+        Naming the path: not a regular file, missing, unreadable, or a symlink loop.
+    """
+    try:
+        mode = path.stat().st_mode
+    except OSError as exc:
+        raise DataError(f"{path}: cannot open: {exc.strerror or exc}") from exc
+    except (RuntimeError, ValueError) as exc:  # a symlink loop, a NUL byte in the name
+        raise DataError(f"{path}: cannot open: {exc}") from exc
+    if not stat.S_ISREG(mode):
+        kind = (
+            "a FIFO"
+            if stat.S_ISFIFO(mode)
+            else "a device"
+            if stat.S_ISCHR(mode) or (stat.S_ISBLK(mode))
+            else "a directory"
+            if stat.S_ISDIR(mode)
+            else "not a regular file"
+        )
+        raise DataError(f"{path}: {kind}, not a data file; refusing to read it")
+    return path
+
+
 def check_readable_format(path: Path) -> None:
     """Refuse an existing non-CSV, non-``.mcap`` file that does not start like an MCAP file.
 
@@ -50,6 +90,8 @@ def check_readable_format(path: Path) -> None:
     DataError
         Naming the file; also when it cannot be opened.
     """
+    if path.exists() and not path.is_dir():
+        check_regular_file(path)
     if is_csv(path) or not path.is_file() or path.suffix.lower() == ".mcap":
         return
     try:
@@ -87,6 +129,13 @@ def bag_location(path: Path) -> Path:
     return path
 
 
+def _resolve(path: Path) -> Path:
+    try:
+        return path.resolve()
+    except (OSError, RuntimeError, ValueError) as exc:  # a symlink loop, a NUL byte
+        raise DataError(f"{path}: cannot resolve the path: {exc}") from exc
+
+
 def bag_files(path: Path) -> list[Path]:
     """The MCAP files of a bag directory (from ``metadata.yaml``) or a bare MCAP file.
 
@@ -111,53 +160,43 @@ def bag_files(path: Path) -> list[Path]:
         return [location]
     from ruamel.yaml import YAML
 
+    metadata = check_regular_file(location / "metadata.yaml")
+    if metadata.stat().st_size > MAX_METADATA_BYTES:
+        raise DataError(
+            f"{metadata}: {metadata.stat().st_size} bytes; not a rosbag2 metadata file"
+        )
     try:
-        info = YAML(typ="safe").load((location / "metadata.yaml").read_text("utf8"))
+        info = YAML(typ="safe").load(metadata.read_text("utf8"))
         info = info["rosbag2_bagfile_information"]
-        names = list(info["relative_file_paths"])
+        names = info["relative_file_paths"]
         storage = str(info.get("storage_identifier", "mcap"))
     except Exception as exc:  # ruamel raises many types; a bad metadata.yaml is a data error
-        raise DataError(f"{location}/metadata.yaml: cannot read the file list: {exc}") from exc
+        raise DataError(f"{metadata}: cannot read the file list: {exc}") from exc
+    if not isinstance(names, list) or not all(
+        isinstance(name, str) and name and "\x00" not in name for name in names
+    ):
+        raise DataError(
+            f"{metadata}: relative_file_paths must be a list of file names, got {names!r:.80}"
+        )
+    inside = location.resolve()
+    for name in names:
+        target = location / name
+        if Path(name).is_absolute() or not _resolve(target).is_relative_to(inside):
+            raise DataError(
+                f"{metadata}: relative_file_paths names {name!r}, outside the bag directory; "
+                "refusing to read it"
+            )
     if storage != "mcap":
         raise DataError(
             f"{location}: storage {storage!r}; only rosbag2 MCAP bags are read (convert with "
             "'ros2 bag convert' or 'rosbags-convert')"
         )
     files = [location / name for name in names]
-    missing = [str(f) for f in files if not f.is_file()]
+    missing = [str(f) for f in files if not f.exists()]
     if missing:
         raise DataError(f"{location}: metadata.yaml lists missing files: {', '.join(missing)}")
+    for file in files:
+        check_regular_file(file)
     if not files:
         raise DataError(f"{location}/metadata.yaml lists no files")
     return files
-
-
-def clear_for_writing(path: Path, overwrite: bool, *, bag: bool) -> None:
-    """Refuse an existing output unless ``overwrite``; then remove it.
-
-    Parameters
-    ----------
-    path : Path
-        The output about to be written.
-    overwrite : bool
-        Replace an existing output.
-    bag : bool
-        The output is a bag: an existing bag directory (or an empty directory) may be replaced.
-
-    Raises
-    ------
-    DataError
-        The output exists and ``overwrite`` is False, or it is a directory that is not a bag.
-    """
-    if not (path.exists() or path.is_symlink()):
-        return
-    if not overwrite:
-        raise DataError(f"{path} exists; pass overwrite (--force) to replace it")
-    if path.is_dir() and not path.is_symlink():
-        if not bag or not (is_bag_directory(path) or not any(path.iterdir())):
-            raise DataError(
-                f"{path} is a directory that is not a rosbag2 bag; refusing to replace it"
-            )
-        shutil.rmtree(path)
-    else:
-        path.unlink()

@@ -72,6 +72,8 @@ class BagOutput:
         ``hardware_id`` of the diagnostic statuses.
     with_diagnosis : bool
         Offer the :data:`DIAGNOSIS_TOPIC` topic.
+    name : str, optional
+        Stem of the ``.mcap`` file (``path``'s name by default).
     """
 
     def __init__(
@@ -82,9 +84,10 @@ class BagOutput:
         compress: bool = False,
         hardware_id: str = "thermocouple-pair",
         with_diagnosis: bool = True,
+        name: str | None = None,
     ) -> None:
         self.path = path
-        self._writer = McapBagWriter(path, compress=compress)
+        self._writer = McapBagWriter(path, compress=compress, name=name)
         self._input_topics = dict(input_topics)
         self._inputs: dict[str, int] = {}  # channels of the inputs, added as they appear
         # The derived topics get their channels on first use, after the inputs, so that the

@@ -31,7 +31,8 @@ from ..io import (
     BagStream,
     CsvStream,
     Record,
-    clear_for_writing,
+    atomic_output,
+    check_output,
     format_stamp,
     is_csv,
     open_stream,
@@ -348,27 +349,28 @@ def process(
     started = time.perf_counter()
     config = config or ProcessConfig()
     source, output = Path(source), Path(output)
-    if output.resolve() == source.resolve():
-        raise DataError(f"{output}: the output would replace the input")
+    bag = not is_csv(output)
+    check_output(output, config.overwrite, [source], directory=bag)  # before reading anything
     reader = open_stream(source, topics=config.topics, columns=config.columns)
-    clear_for_writing(output, config.overwrite, bag=not is_csv(output))
-    output.parent.mkdir(parents=True, exist_ok=True)
-    sink: BagOutput | CsvOutput
-    if is_csv(output):
-        sink = CsvOutput(output, with_ref="ref" in reader.topics)
-    else:
-        sink = BagOutput(
-            output,
-            reader.topics,
-            compress=config.compress,
-            hardware_id=config.hardware_id,
-            with_diagnosis=config.diagnose,
-        )
     try:
-        result = _run(source, output, config, reader, sink, progress, started)
-    except BaseException:
-        sink.abort()
-        raise
+        with atomic_output(output, config.overwrite, [source], directory=bag) as temporary:
+            sink: BagOutput | CsvOutput
+            if bag:
+                sink = BagOutput(
+                    temporary,
+                    reader.topics,
+                    compress=config.compress,
+                    hardware_id=config.hardware_id,
+                    with_diagnosis=config.diagnose,
+                    name=output.name,
+                )
+            else:
+                sink = CsvOutput(temporary, with_ref="ref" in reader.topics)
+            try:
+                result = _run(source, output, config, reader, sink, progress, started)
+            except BaseException:
+                sink.abort()
+                raise
     finally:
         if progress is not None:
             progress.close()
