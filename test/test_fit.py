@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tcomp_core.fit import fit_error_percent, simulate_tc2_from_tc1
+from tcomp_core.fit import fit_error_percent, rms_about_mean, simulate_tc2_from_tc1
 
 
 def _difference_equation(tc1: np.ndarray, initial_tc2: float, a1: float, a2: float) -> np.ndarray:
@@ -38,3 +38,10 @@ def test_fit_error_restarts_from_the_measurement_after_a_gap():
     )
     assert fit_error_percent(tc1, tc2, a1, a2, np.array([250])) < 1e-9
     assert fit_error_percent(tc1, tc2, a1, a2) > 1.0  # run across the gap, the jump decays
+
+
+def test_rms_about_mean_is_numpy_std():
+    rng = np.random.default_rng(4)
+    block = rng.normal(300.0, 7.0, (5000, 2))
+    for values in (block[:, 1], block[:, 0], rng.normal(size=3), np.full(10, 2.5)):
+        assert rms_about_mean(values) == pytest.approx(float(np.std(values)), rel=1e-12, abs=0)

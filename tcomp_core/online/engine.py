@@ -127,9 +127,9 @@ class Engine:
         vals = np.asarray(values, dtype=np.float64)
         last = self.matcher.last_matched_ns
         if last is not None and stamps.size and stamps.dtype.kind in "iu":
-            far = round(self.compensator.config.discontinuity_s * 1e9)
-            behind = stamps.astype(np.int64, copy=False) < last - far
-            if behind.any():
+            limit = last - round(self.compensator.config.discontinuity_s * 1e9)
+            if int(stamps.min()) < limit:
+                behind = stamps.astype(np.int64, copy=False) < limit
                 start = self._discontinuity_start(index, behind)
                 if start is not None:
                     self._match(index, stamps[:start], vals[:start], now)

@@ -22,7 +22,7 @@ from ..estimators import Estimate, beta_noise_covariance, estimate
 from ..estimators.beta import estimate_beta_from_scatter
 from ..estimators.scatter import beta_scatter, solve_gtls
 from ..filters import prefilter
-from ..fit import fit_error_percent
+from ..fit import fit_error_percent, rms_about_mean
 from ..tracking import ForgettingEstimator
 from ..validation import MIN_SAMPLES
 from ..window import BETA_METHODS, SlidingBetaWindow
@@ -258,7 +258,7 @@ class WindowEstimator:
                 return math.nan
             eigenvalue = float(eigenvalues[0])
         sigma2 = math.sqrt(max(eigenvalue, 0.0) / max(window.rows, 1))
-        spread = float(np.std(samples[:, 1]))
+        spread = rms_about_mean(samples[:, 1])
         return 100.0 * sigma2 / spread if spread > 0.0 else math.nan
 
 

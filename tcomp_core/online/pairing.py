@@ -492,9 +492,15 @@ class PairMatcher:
         counters = self.counters
         counters.received[index] += int(stamps.size)
         valid = self._valid_range
-        # A finite range is False for NaN and ±inf too.
-        finite = np.isfinite(vals) if valid is None else (vals >= valid[0]) & (vals <= valid[1])
-        if not finite.all():
+        if valid is None:
+            some_bad = not np.isfinite(vals).all()
+        else:  # min/max are NaN if any value is: an all-good batch costs two reductions
+            some_bad = bool(vals.size) and not (valid[0] <= vals.min() and vals.max() <= valid[1])
+        if some_bad:
+            # Within a finite range is False for NaN and ±inf too.
+            finite = (
+                np.isfinite(vals) if valid is None else (vals >= valid[0]) & (vals <= valid[1])
+            )
             bad = stamps[~finite]
             counters.invalid[index] += int(bad.size)
             counters.last_invalid_ns[index] = int(bad[-1])
