@@ -60,11 +60,12 @@ def main(argv: list[str] | None = None) -> int:
             *("--force", "--postfilter-hz", "50"),
         ]
     )
-    _run(["sweep", str(csv), "--png", str(out / "sweep.png")])
+    _run(["sweep", str(csv), "--png", str(out / "sweep.png"), "--force"])
     _run(
         [
             *("diagnose", str(args.effect_bag)),
             *("--report", str(out / "diagnosis"), "--json", str(out / "diagnosis.json")),
+            "--force",  # the demo may run again over its own outputs
         ]
     )
     print(f"\ndemo outputs in {out}/; the diagnosis report is {out / 'diagnosis' / 'index.html'}")
