@@ -8,6 +8,8 @@ and the ratio of two sensors' estimates is the φ = σ1²/σ2² that β-GTLS (Eq
 
 from __future__ import annotations
 
+import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +18,7 @@ from scipy import signal, stats
 
 from .validation import check_sample_interval
 
-__all__ = ["NoiseEstimate", "estimate_noise", "signal_band_edge"]
+__all__ = ["NoiseEstimate", "estimate_noise", "model_noise", "signal_band_edge"]
 
 #: Fraction of the Nyquist band, from the top, whose spectrum is taken as noise.
 NOISE_BAND = (0.6, 0.95)
@@ -111,3 +113,132 @@ def signal_band_edge(
     freqs, psd, _ = _welch(np.asarray(values, dtype=np.float64), dt)
     above = np.flatnonzero(psd[1:] > ratio * floor) + 1
     return float(freqs[above[-1]] if above.size else freqs[1])
+
+
+#: Part of the Nyquist band the model-based noise levels are measured in, split into
+#: :data:`MODEL_SUB_BANDS` equal sub-bands.
+MODEL_NOISE_BAND = (0.3, 0.95)
+MODEL_SUB_BANDS = 6
+#: A sub-band's signal leakage is removed only when it stands this many standard errors above 0.
+LEAKAGE_Z = 2.0
+#: Standard deviation of a normal variable per unit of its median absolute deviation.
+_MAD_TO_STD = 1.482602218505602
+#: Fast-sensor time constants skipped at the start of the model residual (its filter settles).
+_SETTLE_TIME_CONSTANTS = 10.0
+
+
+def _difference_spectra(
+    x: NDArray[np.float64], y: NDArray[np.float64], dt: float
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Welch auto-spectrum of x and cross-spectrum of x with y, of their first differences.
+
+    First differences flatten the steep low-frequency spectrum of the readings, which would
+    otherwise leak through the window's side lobes into the band; dividing by |1 - e^(-iω)|²
+    undoes the difference. Returns (frequencies in Hz, S_xx, S_xy), one-sided, units²/Hz.
+    """
+    step_x, step_y = np.diff(x), np.diff(y)
+    nperseg = int(min(_SEGMENT, max(16, step_x.size // 8)))
+    options = {"fs": 1.0 / dt, "nperseg": nperseg, "detrend": "constant"}
+    freqs, auto = signal.welch(step_x, **options)  # type: ignore[call-overload]
+    _, cross = signal.csd(step_x, step_y, **options)  # type: ignore[call-overload]
+    gain = np.maximum(4.0 * np.sin(np.pi * freqs * dt) ** 2, np.finfo(float).tiny)
+    return freqs, auto / gain, cross / gain
+
+
+def _first_order_response(a: float, omega: NDArray[np.float64]) -> NDArray:
+    """Frequency response of the zero-order-hold first-order lag with pole a at ω (rad/sample)."""
+    delay = np.exp(-1j * omega)
+    return (1.0 - a) * delay / (1.0 - a * delay)
+
+
+def _band_floor(auto: NDArray, unbiased: NDArray, freqs: NDArray, edges: NDArray) -> float:
+    """Noise floor over sub-bands: plain spectrum unless leakage shows; inverse-variance mean."""
+    values, variances = [], []
+    for low, high in itertools.pairwise(edges):
+        band = (freqs >= low) & (freqs < high)
+        count = int(np.count_nonzero(band))
+        if count < 2:
+            continue
+        leakage = auto[band] - unbiased[band]
+        chosen = auto[band]
+        # The spread from the median absolute deviation: harmonic lines, which are leakage,
+        # must not widen the yardstick that leakage is measured against.
+        spread = _MAD_TO_STD * float(np.median(np.abs(leakage - np.median(leakage))))
+        if np.mean(leakage) > LEAKAGE_Z * spread / np.sqrt(count):
+            chosen = unbiased[band]
+        values.append(float(np.mean(chosen)))
+        variances.append(max(float(np.var(chosen, ddof=1)) / count, 1e-300))
+    weights = 1.0 / np.asarray(variances)
+    return max(float(np.sum(weights * np.asarray(values)) / np.sum(weights)), 0.0)
+
+
+def model_noise(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    tau1: float,
+    tau2: float,
+) -> tuple[NoiseEstimate, NoiseEstimate]:
+    """White-noise levels of both sensors, corrected by the model for the gas signal they share.
+
+    Above the sensors' bandwidth a reading's spectrum is its noise floor plus what is left of
+    the gas signal (the leakage); sharp edges (ramps, exhaust pulses) leave much, and a plain
+    spectral floor then reads signal as noise on the fast sensor. By the model the gas reaches
+    both sensors, y_i = G_i u + n_i, so the residual ε = y_f - (G_f/G_s) y_s of the faster
+    sensor f predicted from the slower s holds noise only, ε = n_f - (G_f/G_s) n_s, and
+
+        S(y_f, ε) = σ_f²,    S(y_s, ε) = -σ_s² conj(G_f/G_s),
+
+    whatever the gas does (ε is filtered in time, exactly, by a stable filter with the fast
+    sensor's pole). These cross-spectra are unbiased but scatter more than the plain
+    auto-spectrum, so each of :data:`MODEL_SUB_BANDS` sub-bands of :data:`MODEL_NOISE_BAND`
+    uses them only where the leakage (plain minus unbiased) stands :data:`LEAKAGE_Z` standard
+    errors above zero; the sub-bands are averaged with inverse-variance weights.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Raw thermocouple readings, degrees C.
+    dt : float
+        Sample interval, s.
+    tau1, tau2 : float
+        Time constants of the two sensors, s (e.g. from :func:`tcomp_core.estimate`).
+
+    Returns
+    -------
+    noise1, noise2 : NoiseEstimate
+        Noise of tc1 and of tc2; ``band_hz`` is :data:`MODEL_NOISE_BAND` in Hz.
+    """
+    dt = check_sample_interval(dt)
+    readings = [np.asarray(tc1, dtype=np.float64), np.asarray(tc2, dtype=np.float64)]
+    poles = [float(np.exp(-dt / tau1)), float(np.exp(-dt / tau2))]
+    fast = 0 if tau1 <= tau2 else 1
+    slow = 1 - fast
+    a_fast, a_slow = poles[fast], poles[slow]
+    # G_f/G_s = (1 - a_f)/(1 - a_s) (1 - a_s z⁻¹)/(1 - a_f z⁻¹), started in steady state.
+    numerator = (1.0 - a_fast) / (1.0 - a_slow) * np.array([1.0, -a_slow])
+    denominator = np.array([1.0, -a_fast])
+    initial = signal.lfilter_zi(numerator, denominator) * readings[slow][0]
+    predicted, _ = signal.lfilter(numerator, denominator, readings[slow], zi=initial)
+    # The start-up mismatch decays with the fast pole: skip it.
+    skip = min(math.ceil(_SETTLE_TIME_CONSTANTS * min(tau1, tau2) / dt), readings[0].size // 4)
+    residual = (readings[fast] - predicted)[skip:]
+    freqs, auto_fast, cross_fast = _difference_spectra(readings[fast][skip:], residual, dt)
+    _, auto_slow, cross_slow = _difference_spectra(readings[slow][skip:], residual, dt)
+    omega = 2.0 * np.pi * freqs * dt
+    ratio = _first_order_response(a_fast, omega) / _first_order_response(a_slow, omega)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unbiased_slow = np.real(-cross_slow / np.conj(ratio))
+    nyquist = 0.5 / dt
+    edges = np.linspace(MODEL_NOISE_BAND[0], MODEL_NOISE_BAND[1], MODEL_SUB_BANDS + 1) * nyquist
+    if np.count_nonzero((freqs >= edges[0]) & (freqs < edges[-1])) < 2 * MODEL_SUB_BANDS:
+        return estimate_noise(readings[0], dt), estimate_noise(readings[1], dt)
+    floors = [0.0, 0.0]
+    floors[fast] = _band_floor(auto_fast, np.real(cross_fast), freqs, edges)
+    floors[slow] = _band_floor(auto_slow, unbiased_slow, freqs, edges)
+    band_hz = (float(edges[0]), float(edges[-1]))
+    noise1, noise2 = (
+        NoiseEstimate(sigma=float(np.sqrt(floor / (2.0 * dt))), floor=floor, band_hz=band_hz)
+        for floor in floors
+    )
+    return noise1, noise2

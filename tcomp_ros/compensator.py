@@ -53,7 +53,7 @@ from sensor_msgs.msg import Temperature
 from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
-from tcomp_core.estimators import METHODS
+from tcomp_core.estimators import DEFAULT_METHOD, METHODS
 from tcomp_core.io import Encoder, decode_message
 from tcomp_core.online import (
     DIAGNOSTICS_PERIOD_S,
@@ -112,7 +112,7 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
         _descriptor("period of re-estimation, s", floating_point_range=_float_range(0.01, 60)),
     ),
     "method": (
-        "beta-gtls",
+        DEFAULT_METHOD,
         _descriptor("estimator", additional_constraints=f"one of {', '.join(METHODS)}"),
     ),
     "phi": (

@@ -53,7 +53,7 @@ def test_simulate_then_estimate_recovers_tau(simulated, which, capsys):
     capsys.readouterr()
     assert main(["estimate", str(simulated[which]), "--json"]) == 0
     payload = json.loads(capsys.readouterr().out)
-    assert payload["method"] == "beta-gtls"
+    assert payload["method"] == "ml-eiv"
     assert payload["tau1"] == pytest.approx(0.03, rel=1e-9)
     assert payload["tau2"] == pytest.approx(0.12, rel=1e-9)
     assert payload["samples"] == 3000

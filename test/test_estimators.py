@@ -18,7 +18,7 @@ from tcomp_core import (
     estimate,
 )
 from tcomp_core.errors import EstimationError
-from tcomp_core.estimators import DIFFERENCE_EQUATION_METHODS
+from tcomp_core.estimators import DEFAULT_METHOD, DIFFERENCE_EQUATION_METHODS
 from tcomp_core.estimators.scatter import equilibrated_condition, solve_gtls
 from tcomp_core.filters import prefilter
 from tcomp_core.models import pole_to_tau, tau_to_pole
@@ -288,9 +288,9 @@ def test_unknown_method_names_choices():
         assert method in str(info.value)
 
 
-def test_default_method_is_beta_gtls():
+def test_default_method_is_ml_eiv():
     pair = make_pair("ramp", noise_percent=2.0, seed=3)
-    assert estimate(pair.tc1, pair.tc2, pair.dt).method == "beta-gtls"
+    assert estimate(pair.tc1, pair.tc2, pair.dt).method == "ml-eiv" == DEFAULT_METHOD
 
 
 @pytest.mark.parametrize("method", METHODS)

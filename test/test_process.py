@@ -204,7 +204,7 @@ def test_bag_output_opens_with_mcap_and_rosbags(tmp_path):
     assert status.name == STATUS_NAME
     assert abs(float(values["tau1_s"]) - 0.0238) < 0.003
     assert abs(float(values["tau2_s"]) - 0.1168) < 0.01
-    assert values["method"] == "beta-gtls" and int(values["window_samples"]) == 1000
+    assert values["method"] == "ml-eiv" and int(values["window_samples"]) == 1000
 
 
 def _history(bag: Path) -> list[tuple[int, int, dict[str, str]]]:

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..choices import DEFAULT_TOPICS, EFFECT_NAMES, METHODS
+from ..choices import DEFAULT_METHOD, DEFAULT_TOPICS, EFFECT_NAMES, METHODS
 from ..errors import TcompError
 
 if TYPE_CHECKING:
@@ -127,7 +127,11 @@ def add_estimator_arguments(parser: argparse.ArgumentParser, allow_all: bool = F
     """
     choices = [*METHODS, "all"] if allow_all else list(METHODS)
     parser.add_argument(
-        "--method", choices=choices, default="beta-gtls", help="estimator (default beta-gtls)"
+        "--method",
+        choices=choices,
+        default=DEFAULT_METHOD,
+        help=f"estimator (default {DEFAULT_METHOD}: unbiased at any sample rate without a "
+        "pre-filter; the paper's six keep their names)",
     )
     parser.add_argument(
         "--prefilter-hz",

@@ -12,7 +12,14 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..choices import DEFAULT_COLUMNS, DEFAULT_TOPICS, METHODS, RECONSTRUCT_FROM, RECONSTRUCTIONS
+from ..choices import (
+    DEFAULT_COLUMNS,
+    DEFAULT_METHOD,
+    DEFAULT_TOPICS,
+    METHODS,
+    RECONSTRUCT_FROM,
+    RECONSTRUCTIONS,
+)
 from ..errors import TcompError
 from .common import (
     Verbs,
@@ -31,7 +38,7 @@ __all__ = ["add_parser", "process_config", "run"]
 
 #: Defaults of the estimation window (s), the estimator and φ: ``OnlineConfig()``'s.
 WINDOW_S = 2.0
-METHOD = "beta-gtls"
+METHOD = DEFAULT_METHOD
 PHI = 1.0
 
 

@@ -11,16 +11,20 @@
                the paper; about a third of β-GTLS's spread for τ1 at K = 4 %)
 =============  ==========================================================================
 
-The first six are the paper's (:data:`PAPER_METHODS`).
+The first six are the paper's (:data:`PAPER_METHODS`). ``ml-eiv`` is the default
+(:data:`DEFAULT_METHOD`): it weights the residual by the noise it carries at the sample rate it
+is given, so it needs no pre-filter; β-GTLS without one is biased and scattered at the rates
+test cells record (``bench/bench_accuracy.py``, rate block).
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
 
-from numpy.typing import ArrayLike
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-from ..choices import METHODS, PAPER_METHODS, Method
+from ..choices import DEFAULT_METHOD, METHODS, PAPER_METHODS, Method
 from ..filters import prefilter
 from ..validation import check_excitation, check_pair, check_sample_interval
 from .beta import beta_gtls, beta_ls, beta_noise_covariance, beta_tls, estimate_beta_from_scatter
@@ -30,6 +34,7 @@ from .result import Estimate
 from .tdr import tdr_kee
 
 __all__ = [
+    "DEFAULT_METHOD",
     "DIFFERENCE_EQUATION_METHODS",
     "METHODS",
     "PAPER_METHODS",
@@ -59,12 +64,13 @@ def estimate(
     tc1: ArrayLike,
     tc2: ArrayLike,
     dt: float,
-    method: Method = "beta-gtls",
+    method: Method = DEFAULT_METHOD,
     *,
     phi: float | None = 1.0,
     alpha: float | None = None,
     prefilter_hz: float | None = None,
     names: tuple[str, str] = ("tc1", "tc2"),
+    start: tuple[float, float] | None = None,
 ) -> Estimate:
     """Estimate the time constants of two thermocouples from their signals alone.
 
@@ -75,12 +81,15 @@ def estimate(
     dt : float
         Sample interval τ_s in seconds.
     method : str
-        One of :data:`METHODS`; β-GTLS by default.
+        One of :data:`METHODS`; ``ml-eiv`` by default (:data:`DEFAULT_METHOD`): unbiased at any
+        sample rate without a pre-filter, where the paper's estimators need one (``README``).
     phi : float or None
         Noise variance ratio σ1²/σ2² assumed by ``beta-gtls`` and ``ml-eiv`` (1 when the noise
-        is equal); ``None`` measures it from the raw signals' spectra (before any pre-filter)
-        and sets ``params["phi_estimated"] = 1.0``. Refused for the other methods, which
-        assume equal noise.
+        is equal); ``None`` measures it: from the raw signals' spectra (before any
+        pre-filter) for a first estimate, then from the model with that estimate's τ
+        (:func:`tcomp_core.noise.model_noise`, which removes the gas signal the spectra share)
+        for the final one; ``params["phi_estimated"] = 1.0``. Refused for the other
+        methods, which assume equal noise.
     alpha : float, optional
         Time constant ratio τ1/τ2 for ``tdr-kee`` (estimated at signal crossovers if omitted);
         refused for the other methods, which need no prior.
@@ -88,6 +97,9 @@ def estimate(
         Bandwidth of a zero-phase Butterworth pre-filter applied to both signals first, Hz.
     names : pair of str
         What to call the signals in error messages (columns, topics).
+    start : (float, float), optional
+        τ1, τ2 (s) to start ``ml-eiv``'s search from (a warm start, e.g. the previous
+        window's); ignored by the other methods, which are not iterative.
 
     Returns
     -------
@@ -118,28 +130,43 @@ def estimate(
             f"{method} assumes equal noise variances"
         )
     measured = phi is None
+    raw = (first, second)
     if phi is None:
         # Before the pre-filter, which would remove the band the noise is measured in.
         phi = phi_from_data(first, second, dt)
     if prefilter_hz is not None:
         first = prefilter(first, dt, prefilter_hz)
         second = prefilter(second, dt, prefilter_hz)
-    if method == "tdr-kee":
-        result = tdr_kee(first, second, dt, alpha)
-    elif method == "gamma-ls":
-        result = gamma_ls(first, second, dt)
-    elif method == "gamma-tls":
-        result = gamma_tls(first, second, dt)
-    elif method == "beta-ls":
-        result = beta_ls(first, second, dt)
-    elif method == "beta-tls":
-        result = beta_tls(first, second, dt)
-    elif method == "ml-eiv":
-        result = ml_eiv(first, second, dt, phi)
-    else:
-        result = beta_gtls(first, second, dt, phi)
+    result = _dispatch(first, second, dt, method, phi, alpha, start)
     if measured:
+        phi = phi_from_data(*raw, dt, taus=(result.tau1, result.tau2))
+        result = _dispatch(first, second, dt, method, phi, alpha, (result.tau1, result.tau2))
         result = replace(result, params={**result.params, "phi_estimated": 1.0})
     if prefilter_hz is None:
         return result
     return replace(result, prefilter_hz=float(prefilter_hz))
+
+
+def _dispatch(
+    first: NDArray[np.float64],
+    second: NDArray[np.float64],
+    dt: float,
+    method: str,
+    phi: float,
+    alpha: float | None,
+    start: tuple[float, float] | None,
+) -> Estimate:
+    """Run ``method`` on validated signals."""
+    if method == "tdr-kee":
+        return tdr_kee(first, second, dt, alpha)
+    if method == "gamma-ls":
+        return gamma_ls(first, second, dt)
+    if method == "gamma-tls":
+        return gamma_tls(first, second, dt)
+    if method == "beta-ls":
+        return beta_ls(first, second, dt)
+    if method == "beta-tls":
+        return beta_tls(first, second, dt)
+    if method == "ml-eiv":
+        return ml_eiv(first, second, dt, phi, start=start)
+    return beta_gtls(first, second, dt, phi)

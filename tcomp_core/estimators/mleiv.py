@@ -20,7 +20,8 @@ is consistent. It is the efficient weighting of the residual: β-GTLS (Eqs. 18�
 same equation error by its variance alone and ignores the band of Σ; at the paper's conditions
 and K = 4 % its τ1 scatters about three times as much.
 
-Σ is banded, so its Cholesky factor is bidiagonal and the whitened residual U⁻ᵀe costs O(N);
+Σ is tridiagonal Toeplitz, so the whitened residual L⁻¹e (Σ = LLᵀ) has a closed form that
+costs one first-order recursive filter (:meth:`_CrossRelation.whitened`);
 :func:`scipy.optimize.least_squares` minimises its squared norm over log τ. The asymptotic
 covariance of log τ is σ̂² (JᵀJ)⁻¹ with J the Jacobian of the whitened residual and
 σ̂² = J_min/(N - 3). The regressors ΔT_mi are noisy, so XᵀΣ⁻¹X (X = ∂e/∂c) overstates the
@@ -39,17 +40,17 @@ little: assuming φ = 1 on data with φ = 0.16 (K = 2 %) biases τ1 by +0.2 %, �
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg import cholesky_banded
-from scipy.linalg.lapack import dtbtrs
 from scipy.optimize import least_squares
+from scipy.signal import lfilter
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
-from ..noise import estimate_noise
+from ..noise import estimate_noise, model_noise
 from .beta import MAX_CONDITION, beta_gtls
 from .result import Estimate, estimate_from_poles
 
@@ -68,7 +69,12 @@ _TAU_LOW_SAMPLES = 0.02
 _TAU_HIGH_RECORDS = 10.0
 
 
-def phi_from_data(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float) -> float:
+def phi_from_data(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    taus: tuple[float, float] | None = None,
+) -> float:
     """Noise variance ratio φ = σ1²/σ2² measured from the top of the two spectra.
 
     Parameters
@@ -77,6 +83,11 @@ def phi_from_data(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float)
         Raw (not pre-filtered) thermocouple temperatures, degrees C.
     dt : float
         Sample interval, s.
+    taus : (float, float), optional
+        Time constants τ1, τ2 (s). When given, the noise levels come from the model
+        (:func:`tcomp_core.noise.model_noise`), which removes the gas signal the two spectra
+        share; without them, from a low quantile of each spectrum alone
+        (:func:`tcomp_core.noise.estimate_noise`), which sharp edges in the gas can fool.
 
     Returns
     -------
@@ -88,7 +99,11 @@ def phi_from_data(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float)
     DataError
         If one signal shows noise and the other none, so that no finite ratio exists.
     """
-    sigma1, sigma2 = (_noise_sigma(values, dt) for values in (tc1, tc2))
+    if taus is None:
+        sigma1, sigma2 = (_noise_sigma(estimate_noise(v, dt).sigma, v) for v in (tc1, tc2))
+    else:
+        noise1, noise2 = model_noise(tc1, tc2, dt, *taus)
+        sigma1, sigma2 = _noise_sigma(noise1.sigma, tc1), _noise_sigma(noise2.sigma, tc2)
     if sigma1 == 0.0 and sigma2 == 0.0:
         return 1.0
     if not (sigma1 > 0.0 and sigma2 > 0.0):
@@ -99,9 +114,8 @@ def phi_from_data(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float)
     return (sigma1 / sigma2) ** 2
 
 
-def _noise_sigma(values: NDArray[np.float64], dt: float) -> float:
-    """White-noise σ of a signal, degrees C; 0 when it is at the level of rounding."""
-    sigma = estimate_noise(values, dt).sigma
+def _noise_sigma(sigma: float, values: NDArray[np.float64]) -> float:
+    """A white-noise σ of a signal, degrees C; 0 when it is at the level of rounding."""
     return 0.0 if sigma <= _ROUNDING * float(np.max(np.abs(values))) else sigma
 
 
@@ -155,22 +169,41 @@ class _CrossRelation:
         c1, c2 = self.gains(log_tau)
         return self.level + c1 * self.step1 - c2 * self.step2
 
-    def factor(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Upper Cholesky factor U of Σ = UᵀU in LAPACK upper band storage, shape (2, M)."""
+    def covariance_bands(self, log_tau: NDArray[np.float64]) -> tuple[float, float]:
+        """Diagonal d and off-diagonal o (< 0) of the Toeplitz Σ(τ), in units of σ2²."""
         c1, c2 = self.gains(log_tau)
-        bands = np.empty((2, self.rows))
         # (1 + a²) c² = 2c² - 2c + 1 and a c² = c² - c, with a = 1 - 1/c.
-        bands[0, 0] = 0.0
-        bands[0, 1:] = -(self.phi * (c1 * c1 - c1) + (c2 * c2 - c2))
-        bands[1] = self.phi * (2.0 * c1 * c1 - 2.0 * c1 + 1.0) + (2.0 * c2 * c2 - 2.0 * c2 + 1.0)
-        return cholesky_banded(bands, lower=False, check_finite=False)
+        diagonal = self.phi * (2.0 * c1 * c1 - 2.0 * c1 + 1.0) + (2.0 * c2 * c2 - 2.0 * c2 + 1.0)
+        off_diagonal = -(self.phi * (c1 * c1 - c1) + (c2 * c2 - c2))
+        return float(diagonal), float(off_diagonal)
 
     def whitened(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
-        """U⁻ᵀ e, shape (M,), in units of the noise σ2: its squared norm is J."""
-        solved, info = dtbtrs(self.factor(log_tau), self.residual(log_tau)[:, None], trans="T")
-        if info != 0:
-            raise EstimationError(f"ml-eiv: the noise covariance is singular (LAPACK {info})")
-        return solved[:, 0]
+        """L⁻¹ e with Σ = LLᵀ (Cholesky), shape (M,), in units of σ2: its squared norm is J.
+
+        Σ is tridiagonal Toeplitz, so its leading minors are D_k = (r1^(k+2) - r2^(k+2)) /
+        (r1 - r2), r1,2 the roots of r² - d r + o², and its pivots p_k = D_k / D_(k-1). With
+        z = L̃⁻¹e (Σ = L̃ diag(p) L̃ᵀ, L̃ unit lower bidiagonal) and w_k = D_(k-1) z_k / r1^k,
+        the recursion z_k = e_k - (o / p_(k-1)) z_(k-1) becomes the constant-coefficient,
+        stable w_k = D̃_(k-1) e_k - (o / r1) w_(k-1), D̃_k = D_k / r1^(k+1): one
+        :func:`scipy.signal.lfilter` instead of a banded Cholesky factorisation.
+        """
+        diagonal, off_diagonal = self.covariance_bands(log_tau)
+        # d - 2|o| = φ + 1 exactly: the discriminant without cancellation.
+        root = math.sqrt((self.phi + 1.0) * (diagonal - 2.0 * off_diagonal))
+        r1 = 0.5 * (diagonal + root)
+        if not (math.isfinite(r1) and r1 > 0.0):
+            raise EstimationError(f"ml-eiv: the noise covariance is singular (d = {diagonal})")
+        log_q = math.log1p(-root / r1)  # q = r2 / r1 in [0, 1)
+        # D̃_k for k = -1 .. M-1: (1 - q^(k+2)) / (1 - q).
+        minors = np.expm1(self._minor_index * log_q) / math.expm1(log_q)
+        previous, current = minors[:-1], minors[1:]
+        scaled = lfilter([1.0], [1.0, off_diagonal / r1], previous * self.residual(log_tau))
+        return scaled / np.sqrt(r1 * current * previous)
+
+    @functools.cached_property
+    def _minor_index(self) -> NDArray[np.float64]:
+        """The exponents k + 2 of the minors D̃_k, k = -1 .. M-1, shape (M + 1,)."""
+        return np.arange(1.0, self.rows + 2.0)
 
     def criterion(self, log_tau: NDArray[np.float64]) -> float:
         """J = eᵀ Σ⁻¹ e, degrees C²."""
@@ -195,18 +228,32 @@ def _grid_start(problem: _CrossRelation) -> NDArray[np.float64]:
 
 
 def _start(
-    problem: _CrossRelation, tc1: NDArray[np.float64], tc2: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], bool]:
-    """Starting log τ: β-GTLS with the same φ, else the grid. Returns (log τ, from β-GTLS)."""
+    problem: _CrossRelation,
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    warm: tuple[float, float] | None = None,
+) -> tuple[NDArray[np.float64], str]:
+    """Starting log τ and where it came from: ``warm``, else β-GTLS with the same φ, else the grid.
+
+    A start outside the search range is not used.
+    """
     low, high = problem.bounds()
+
+    def inside(log_tau: NDArray[np.float64]) -> bool:
+        return bool(np.all(np.isfinite(log_tau) & (log_tau > low) & (log_tau < high)))
+
+    if warm is not None:
+        start = np.log(np.asarray(warm, dtype=np.float64))
+        if inside(start):
+            return start, "warm"
     try:
         first = beta_gtls(tc1, tc2, problem.dt, problem.phi)
     except (TcompError, ValueError):
-        return _grid_start(problem), False
+        return _grid_start(problem), "grid"
     start = np.log([first.tau1, first.tau2])
-    if np.all((start > low) & (start < high)):
-        return start, True
-    return _grid_start(problem), False
+    if inside(start):
+        return start, "beta-gtls"
+    return _grid_start(problem), "grid"
 
 
 def _equilibrated_condition(jacobian: NDArray[np.float64]) -> float:
@@ -240,6 +287,8 @@ def ml_eiv(
     tc2: NDArray[np.float64],
     dt: float,
     phi: float | None = None,
+    *,
+    start: tuple[float, float] | None = None,
 ) -> Estimate:
     """ML errors-in-variables estimate: minimise J(τ1, τ2) = eᵀ Σ(τ)⁻¹ e (see the module).
 
@@ -253,6 +302,9 @@ def ml_eiv(
     phi : float, optional
         Noise variance ratio σ1²/σ2². ``None`` measures it from the data with
         :func:`phi_from_data`.
+    start : (float, float), optional
+        Time constants τ1, τ2 (s) to start the search from, e.g. the previous window's (a warm
+        start); by default β-GTLS with the same φ, or a log-spaced grid when β-GTLS fails.
 
     Returns
     -------
@@ -262,8 +314,8 @@ def ml_eiv(
         (asymptotic standard errors, s), ``tau1_ci_low``, ``tau1_ci_high``, ``tau2_ci_low``,
         ``tau2_ci_high`` (95 % intervals, s), ``noise_sigma2`` (σ2 implied by J_min, degrees C),
         ``phi_estimated`` (1.0 if φ was measured), ``start_beta_gtls`` (1.0 if the search
-        started from β-GTLS, 0.0 from the grid) and ``evaluations`` (of the residual, not
-        counting the Jacobian's).
+        started from β-GTLS), ``start_warm`` (1.0 if from ``start``) and ``evaluations`` (of
+        the residual, not counting the Jacobian's).
 
     Raises
     ------
@@ -278,10 +330,10 @@ def ml_eiv(
     measured = phi is None
     phi = phi_from_data(tc1, tc2, dt) if phi is None else _check_phi(phi)
     problem = _CrossRelation.from_signals(tc1, tc2, dt, phi)
-    start, from_beta = _start(problem, tc1, tc2)
+    initial, origin = _start(problem, tc1, tc2, start)
     low, high = problem.bounds()
     fit = least_squares(
-        problem.whitened, start, jac="3-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
+        problem.whitened, initial, jac="3-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
     )
     if not fit.success:
         raise EstimationError(f"ml-eiv: the search did not converge ({fit.message})")
@@ -304,7 +356,8 @@ def ml_eiv(
         **_interval_params(tau, _log_tau_covariance(jacobian, fit.cost, problem.rows)),
         "noise_sigma2": math.sqrt(2.0 * fit.cost / (problem.rows - 2)),
         "phi_estimated": 1.0 if measured else 0.0,
-        "start_beta_gtls": 1.0 if from_beta else 0.0,
+        "start_beta_gtls": 1.0 if origin == "beta-gtls" else 0.0,
+        "start_warm": 1.0 if origin == "warm" else 0.0,
         "evaluations": float(fit.nfev),
     }
     return estimate_from_poles("ml-eiv", a1, a2, dt, tc1.size, condition, params, phi=phi)

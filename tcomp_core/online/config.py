@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 from ..choices import RECONSTRUCT_FROM, RECONSTRUCTIONS, SIGNAL_MODELS, ReconstructFrom
-from ..estimators import METHODS, Estimate
+from ..estimators import DEFAULT_METHOD, METHODS, Estimate
 from ..validation import MIN_SAMPLES
 
 __all__ = [
@@ -96,7 +96,7 @@ class OnlineConfig:
     """
 
     window_s: float = 2.0
-    method: str = "beta-gtls"
+    method: str = DEFAULT_METHOD
     phi: float = 1.0
     prefilter_hz: float = 0.0
     postfilter_hz: float = 0.0

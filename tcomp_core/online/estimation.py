@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DataError, TcompError
-from ..estimators import Estimate, beta_noise_covariance, estimate
+from ..estimators import PHI_METHODS, Estimate, beta_noise_covariance, estimate
 from ..estimators.beta import estimate_beta_from_scatter
 from ..estimators.scatter import beta_scatter, solve_gtls
 from ..filters import prefilter
@@ -48,6 +48,8 @@ class WindowEstimator:
         self._period = period_s
         self._window = self._new_window()
         self._tracker = self._new_tracker()
+        #: τ1, τ2 of the last estimate, the warm start of the next ``ml-eiv`` search.
+        self._warm: tuple[float, float] | None = None
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -212,7 +214,7 @@ class WindowEstimator:
         dt = self._window.dt
         segments = np.split(samples, self._window.segment_starts)
         prefilter_hz = config.prefilter_hz or None
-        phi = config.phi if config.method == "beta-gtls" else 1.0
+        phi = config.phi if config.method in PHI_METHODS else 1.0
         if config.method in BETA_METHODS:
             scatter = np.zeros((3, 3))
             used = 0
@@ -230,14 +232,17 @@ class WindowEstimator:
             result = estimate_beta_from_scatter(scatter, dt, used, config.method, phi)
             return result if prefilter_hz is None else replace(result, prefilter_hz=prefilter_hz)
         longest = max(segments, key=len)
-        return estimate(
+        result = estimate(
             longest[:, 0],
             longest[:, 1],
             dt,
             config.method,  # type: ignore[arg-type]
             phi=phi,
             prefilter_hz=prefilter_hz,
+            start=self._warm,
         )
+        self._warm = (result.tau1, result.tau2)
+        return result
 
     def _noise_floor_percent(
         self, samples: NDArray[np.float64], eigenvalue: float | None = None

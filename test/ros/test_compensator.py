@@ -8,6 +8,7 @@ import pytest
 from node_harness import level, stamps_for, values
 from rclpy.parameter import Parameter
 
+from tcomp_core.estimators import DEFAULT_METHOD
 from tcomp_core.io import read_record
 from tcomp_core.simulate import simulate_pair
 from tcomp_ros.compensator import CompensatorNode
@@ -29,7 +30,7 @@ def test_tau_from_diagnostics_converges_within_two_percent(harness):
     assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.02)
     assert float(found["tau2_s"]) == pytest.approx(data.tau2, rel=0.02)
     assert float(found["alpha"]) == pytest.approx(data.tau1 / data.tau2, rel=0.03)
-    assert found["method"] == "beta-gtls"
+    assert found["method"] == DEFAULT_METHOD
     assert int(found["window_samples"]) == 2000
     assert int(found["matched"]) == data.tc1.size
     for key in ("rate_tc1_hz", "rate_tc2_hz", "dropped", "invalid_tc1", "invalid_tc2"):
@@ -77,10 +78,10 @@ def test_parameter_change_applies_and_bad_value_is_rejected(harness):
     ):
         result = node.set_parameters([bad])[0]
         assert not result.successful, bad.name
-    assert node.get_parameter("method").value == "beta-gtls"
+    assert node.get_parameter("method").value == DEFAULT_METHOD
     assert node.get_parameter("phi").value == 1.0
     assert node.engine.compensator.config.window_s == 1.0
-    assert node.engine.compensator.config.method == "beta-gtls"
+    assert node.engine.compensator.config.method == DEFAULT_METHOD
     # An atomic change with one bad value changes nothing.
     results = node.set_parameters_atomically(
         [Parameter("window_s", value=3.0), Parameter("method", value="nope")]
