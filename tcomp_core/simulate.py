@@ -9,6 +9,7 @@ the noise variance ratio φ = σ1²/σ2² (the paper's nomenclature, Eq. 19) is 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -92,7 +93,7 @@ def exhaust_pulses(
     cycle = np.floor(t / period).astype(np.int64)
     phase = t - cycle * period
     rng = np.random.default_rng(seed)
-    heights = 1.0 + jitter * rng.standard_normal(int(cycle.max()) + 1)
+    heights = 1.0 + jitter * rng.standard_normal(int(cycle.max() - cycle.min()) + 1)
     pulse = heights[cycle - cycle.min()] * np.exp(-phase / (decay_fraction * period))
     # Centre the pulse train: the exponential has mean (decay_fraction)(1 - e^{-1/decay_fraction}).
     pulse_mean = decay_fraction * (1.0 - np.exp(-1.0 / decay_fraction))
@@ -207,6 +208,7 @@ def simulate_pair(
     phi: float = 1.0,
     seed: int = 0,
     signal_params: dict[str, float] | None = None,
+    warmup: float = 0.0,
 ) -> SimulatedPair:
     """Simulate the two-thermocouple system of Fig. 2.
 
@@ -228,6 +230,11 @@ def simulate_pair(
         Seed of the noise generator.
     signal_params : dict, optional
         Extra parameters of the gas signal generator.
+    warmup : float
+        Seconds simulated before the record starts and dropped, s (>= 0): with several time
+        constants of warm-up the sensors start settled in the running signal, as on a rig
+        that was already running, rather than in equilibrium with its first value (whose
+        start-up transient is a step response, a strong extra excitation).
 
     Returns
     -------
@@ -236,11 +243,15 @@ def simulate_pair(
     dt = check_sample_interval(dt)
     if not duration > 0.0:
         raise ValueError(f"{duration=} must be > 0 s")
+    if not (math.isfinite(warmup) and warmup >= 0.0):
+        raise ValueError(f"{warmup=} must be >= 0 s")
     n = round(duration / dt)
-    time = np.arange(n, dtype=np.float64) * dt
+    skip = round(warmup / dt)
+    time = np.arange(-skip, n, dtype=np.float64) * dt
     gas = gas_signal(kind, time, **(signal_params or {}))
-    clean1 = FirstOrderLag(tau=tau1).respond(gas, dt)
-    clean2 = FirstOrderLag(tau=tau2).respond(gas, dt)
+    clean1 = FirstOrderLag(tau=tau1).respond(gas, dt)[skip:]
+    clean2 = FirstOrderLag(tau=tau2).respond(gas, dt)[skip:]
+    time, gas = time[skip:], gas[skip:]
     rng = np.random.default_rng(seed)
     tc1, tc2, sigma1, sigma2 = add_noise(clean1, clean2, noise_percent, phi, rng)
     return SimulatedPair(

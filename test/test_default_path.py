@@ -1,4 +1,4 @@
-"""The default estimator at the rates test cells record, and noise levels from the model (issue 14).
+"""The default estimator at the rates test cells record; noise levels from the model (issue 14).
 
 Seeded Monte Carlo at K = 2 %, fewer runs than ``bench/bench_accuracy.py`` (rate block). Figures
 of these runs when written: the default path's τ1 bias within ±0.15 %, std ≤ 0.3 % at 5 and
@@ -70,7 +70,9 @@ def test_whitening_equals_the_dense_cholesky_solve(phi, rows):
     )
     lower = cholesky(sigma, lower=True)
     expected = np.linalg.solve(lower, problem.residual(log_tau))
-    assert np.allclose(problem.whitened(log_tau), expected, rtol=1e-9, atol=1e-9 * abs(expected).max())
+    assert np.allclose(
+        problem.whitened(log_tau), expected, rtol=1e-9, atol=1e-9 * abs(expected).max()
+    )
 
 
 def test_warm_start_reaches_the_same_minimum_in_fewer_steps():
