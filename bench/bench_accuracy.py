@@ -12,6 +12,18 @@ Blocks, each one function called by :func:`main`:
     Unequal noise, σ2/σ1 = 2.5 (φ = 0.16) at K = 2 %: bias and std of β-GTLS assuming φ = 1,
     β-GTLS and ml-eiv with φ measured from the data, ml-eiv's interval coverage and the mean of
     the measured φ.
+``rate_block`` (issue 14)
+    Sample rates 0.5-20 kHz × the four signals × K = 1, 2, 4 % (φ = 1), records of 10 s that
+    start settled (1 s of warm-up): bias and std (% of truth) of τ1 and τ2 for the default path
+    (:func:`tcomp_core.estimate` with no options, on the 10 s record and on its first 2 s, the
+    node's window), β-GTLS (φ = 1, no pre-filter), ml-eiv with φ measured (``phi=None``) and
+    the oracle; beside each std the Cramér–Rao bound of the record length
+    (:mod:`tcomp_core.estimators.bound`, gas unknown) and the efficiency CRB std / std (the
+    oracle knows the gas and may exceed 1).
+``phi_model_block`` (issue 14)
+    φ measured from the spectra alone (:func:`~tcomp_core.noise.estimate_noise`) and from the
+    model (:func:`~tcomp_core.noise.model_noise` with ml-eiv's τ): mean and worst
+    |φ̂/φ - 1| over the runs, ramp, exhaust and multisine, K = 0.5-4 %, φ = 0.1, 1, 10.
 ``reconstruction`` and ``tracking``
     e_Tg per reconstruction (the paper's 50 Hz post-filter, the hindsight-best post-filter,
     the Kalman smoother and causal filter) and the τ tracking error, from
@@ -34,12 +46,14 @@ import argparse
 import sys
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tcomp_core.errors import TcompError
-from tcomp_core.estimators import Estimate, estimate
+from tcomp_core.estimators import Estimate, estimate, phi_from_data
+from tcomp_core.estimators.bound import cramer_rao_bound
 from tcomp_core.estimators.oracle import oracle_taus
 from tcomp_core.simulate import PAPER_TAU1, PAPER_TAU2, SimulatedPair, simulate_pair
 
@@ -50,6 +64,14 @@ QUICK_RUNS = 40
 PHI_UNEQUAL = 0.16  # σ1²/σ2²: σ2/σ1 = 2.5
 PHI_NOISE_LEVEL = 2.0
 TRUTH = np.array([PAPER_TAU1, PAPER_TAU2])
+ALL_SIGNALS = ("sinusoid", "ramp", "multisine", "exhaust")
+RATES_HZ = (500, 1000, 2000, 5000, 10000, 20000)
+RATE_NOISE_LEVELS = (1.0, 2.0, 4.0)
+RATE_RUNS = 20
+QUICK_RATE_RUNS = 6
+RECORD_S, WINDOW_S, WARMUP_S = 10.0, 2.0, 1.0
+PHI_MODEL_LEVELS = (0.5, 1.0, 2.0, 4.0)
+PHI_MODEL_RATIOS = (0.1, 1.0, 10.0)
 
 #: An estimator of the benchmark: the record in, (τ1, τ2) and the estimate (or None) out.
 Estimator = Callable[[SimulatedPair], tuple[tuple[float, float], Estimate | None]]
@@ -227,6 +249,124 @@ def phi_block(runs: int, seed: int) -> None:
     print()
 
 
+def _first_seconds(pair: SimulatedPair, seconds: float) -> SimulatedPair:
+    n = round(seconds / pair.dt)
+    return replace(
+        pair,
+        time=pair.time[:n],
+        gas=pair.gas[:n],
+        tc1=pair.tc1[:n],
+        tc2=pair.tc2[:n],
+        clean1=pair.clean1[:n],
+        clean2=pair.clean2[:n],
+    )
+
+
+def _default_path(pair: SimulatedPair) -> tuple[tuple[float, float], Estimate | None]:
+    result = estimate(pair.tc1, pair.tc2, pair.dt)
+    return (result.tau1, result.tau2), result
+
+
+def _crb_std(pair: SimulatedPair) -> NDArray[np.float64]:
+    """Cramér–Rao bound on the std of τ1, τ2 for this record's gas and noise, % of truth."""
+    bound = cramer_rao_bound(pair.gas, pair.tau1, pair.tau2, pair.dt, pair.sigma1, pair.sigma2)
+    return 100.0 * np.sqrt(np.diag(bound)) / TRUTH
+
+
+def rate_block(runs: int, seed: int, rates: Sequence[int]) -> None:
+    """Bias, std, CRB and efficiency per sample rate, signal and K (see the module)."""
+    long_estimators: dict[str, Estimator] = {
+        "default": _default_path,
+        "beta-gtls": _from_estimate("beta-gtls", 1.0),
+        "ml-eiv phi^": _from_estimate("ml-eiv", None),
+        "oracle": _oracle,
+    }
+    print(
+        f"τ accuracy per sample rate: τ1 = {PAPER_TAU1} s, τ2 = {PAPER_TAU2} s, φ = 1, records "
+        f"of {RECORD_S:g} s (window {WINDOW_S:g} s for 'default 2s'), settled, {runs} runs"
+    )
+    print("eff = CRB std / std; |bias| < 0.5 % and std <= 1 % is the goal at K = 2 %")
+    header = (
+        f"{'rate':>6} {'signal':<9}{'K %':>4}  {'method':<12}{'bias1':>8}{'std1':>7}"
+        f"{'crb1':>7}{'eff1':>6}{'bias2':>8}{'std2':>7}{'crb2':>7}{'eff2':>6}{'fail':>5}"
+    )
+    print(header)
+    print("-" * len(header))
+    for rate in rates:
+        for kind in ALL_SIGNALS:
+            for level in RATE_NOISE_LEVELS:
+                records = [
+                    simulate_pair(
+                        kind,  # type: ignore[arg-type]
+                        dt=1.0 / rate,
+                        duration=RECORD_S,
+                        noise_percent=level,
+                        seed=record_seed(seed, 2 + rate, ALL_SIGNALS.index(kind), level, run),
+                        warmup=WARMUP_S,
+                    )
+                    for run in range(runs)
+                ]
+                windows = [_first_seconds(pair, WINDOW_S) for pair in records]
+                cells = {
+                    **run_cell(records, long_estimators),
+                    "default 2s": run_cell(windows, {"default 2s": _default_path})["default 2s"],
+                }
+                bounds = {name: _crb_std(records[0]) for name in long_estimators}
+                bounds["default 2s"] = _crb_std(windows[0])
+                for index, (name, result) in enumerate(cells.items()):
+                    bias, std, failed = bias_std(result["tau"])
+                    crb = bounds[name]
+                    eff = crb / std
+                    lead = f"{rate:>6} {kind:<9}{level:>4g}" if index == 0 else " " * 19
+                    print(
+                        f"{lead}  {name:<12}{bias[0]:>+8.3f}{std[0]:>7.3f}{crb[0]:>7.3f}"
+                        f"{eff[0]:>6.2f}{bias[1]:>+8.3f}{std[1]:>7.3f}{crb[1]:>7.3f}"
+                        f"{eff[1]:>6.2f}{failed:>5}",
+                        flush=True,
+                    )
+    print()
+
+
+def phi_model_block(runs: int, seed: int, rates: Sequence[int]) -> None:
+    """φ from the spectra alone against φ from the model (see the module)."""
+    print(f"φ measured, {RECORD_S:g} s records, {runs} runs: mean and worst |φ̂/φ - 1| %")
+    header = (
+        f"{'rate':>6} {'signal':<9}{'K %':>5}{'φ':>6}  {'spectra mean':>13}{'worst':>8}"
+        f"  {'model mean':>11}{'worst':>8}"
+    )
+    print(header)
+    print("-" * len(header))
+    for rate in rates:
+        for kind in ("ramp", "exhaust", "multisine"):
+            for level in PHI_MODEL_LEVELS:
+                for phi in PHI_MODEL_RATIOS:
+                    spectral, modelled = [], []
+                    for run in range(runs):
+                        keys = (seed, 3 + rate, ALL_SIGNALS.index(kind), level * phi, run)
+                        pair = simulate_pair(
+                            kind,  # type: ignore[arg-type]
+                            dt=1.0 / rate,
+                            duration=RECORD_S,
+                            noise_percent=level,
+                            phi=phi,
+                            seed=record_seed(*keys),
+                            warmup=WARMUP_S,
+                        )
+                        found = estimate(pair.tc1, pair.tc2, pair.dt)
+                        taus = (found.tau1, found.tau2)
+                        spectral.append(phi_from_data(pair.tc1, pair.tc2, pair.dt) / phi - 1)
+                        modelled.append(
+                            phi_from_data(pair.tc1, pair.tc2, pair.dt, taus=taus) / phi - 1
+                        )
+                    s_err, m_err = 100 * np.abs(spectral), 100 * np.abs(modelled)
+                    print(
+                        f"{rate:>6} {kind:<9}{level:>5g}{phi:>6g}  {s_err.mean():>13.1f}"
+                        f"{s_err.max():>8.1f}  {m_err.mean():>11.1f}{m_err.max():>8.1f}",
+                        flush=True,
+                    )
+    print()
+
+
 # ------------------------------------------------------------------------------- entry point
 
 
@@ -241,7 +381,27 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=10,
         help="records per cell of the e_Tg and tracking tables (10; 0 skips them)",
     )
+    parser.add_argument(
+        "--rate-runs",
+        type=int,
+        default=None,
+        help=f"runs per cell of the rate and φ blocks ({RATE_RUNS}; {QUICK_RATE_RUNS} quick)",
+    )
+    parser.add_argument(
+        "--rates",
+        default=",".join(str(r) for r in RATES_HZ),
+        help="sample rates of the rate and φ blocks, Hz, comma-separated",
+    )
+    parser.add_argument(
+        "--blocks",
+        default="tau,phi,rate,phi-model,reconstruction",
+        help="which blocks to run, comma-separated (all by default)",
+    )
     args = parser.parse_args(argv)
+    args.rates = [int(r) for r in args.rates.split(",")]
+    args.blocks = set(args.blocks.split(","))
+    if args.rate_runs is None:
+        args.rate_runs = QUICK_RATE_RUNS if args.quick else RATE_RUNS
     if args.runs is None:
         args.runs = QUICK_RUNS if args.quick else DEFAULT_RUNS
     if args.runs < 2:
@@ -252,9 +412,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     started = time.perf_counter()
-    tau_block(args.runs, args.seed)
-    phi_block(args.runs, args.seed)
-    if args.reconstruction_runs > 0:
+    if "tau" in args.blocks:
+        tau_block(args.runs, args.seed)
+    if "phi" in args.blocks:
+        phi_block(args.runs, args.seed)
+    if "rate" in args.blocks:
+        rate_block(args.rate_runs, args.seed, args.rates)
+    if "phi-model" in args.blocks:
+        phi_model_block(args.rate_runs, args.seed, args.rates)
+    if args.reconstruction_runs > 0 and "reconstruction" in args.blocks:
         # A sibling script, importable because Python puts bench/ first on the path.
         from bench_reconstruction import reconstruction_table, tracking_table
 

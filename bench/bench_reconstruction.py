@@ -1,7 +1,8 @@
 """Gas temperature reconstruction: fused Kalman smoother vs. the paper's post-filtered Eq. (7).
 
 What is measured, on the paper's conditions (τ1 = 23.8 ms, τ2 = 116.8 ms, dt = 2 ms, 10 s,
-φ = 1, the true τ), for each signal (periodic ramp, broadband multisine, 10 Hz sinusoid) and
+φ = 1, the true τ), for each signal (periodic ramp, broadband multisine, exhaust pulses, 10 Hz
+sinusoid) and
 noise level K (Eq. 22), as the mean over ``--runs`` seeded records of e_Tg (Eq. 25, %, over the
 N-1 intervals a following sample observes):
 
@@ -11,7 +12,7 @@ N-1 intervals a following sample observes):
   lowest e_Tg on that record, chosen with hindsight of the true gas temperature; ``@Hz`` is the
   median of the chosen bandwidths;
 * ``smoother`` – :func:`tcomp_core.fusion.fuse` (RTS smoother; signal model and its settings by
-  maximum likelihood, noise levels from the spectra); ``model`` is the model chosen most often;
+  maximum likelihood, noise levels from the model); ``model`` is the model chosen most often;
 * ``causal`` – the forward Kalman filter of the same model (one-sample latency, as Eq. 7).
 
 Then the τ tracking error of :func:`tcomp_core.tracking.track_tau` (constant ratio imposed) on
@@ -36,7 +37,7 @@ from tcomp_core.reconstruct import reconstruct
 from tcomp_core.simulate import add_noise, multisine, simulate_pair
 from tcomp_core.tracking import track_tau, varying_lag_response
 
-SIGNALS = ("ramp", "multisine", "sinusoid")
+SIGNALS = ("ramp", "multisine", "exhaust", "sinusoid")
 NOISE_PERCENT = (1.0, 2.0, 4.0)
 BANDWIDTHS = np.arange(5.0, 241.0, 1.0)
 MEMORIES = (0.05, 0.1, 0.25, 0.5, 1.0)

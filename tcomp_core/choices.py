@@ -60,7 +60,9 @@ Combination = Literal["inverse-variance", "mean", "tc1", "tc2"]
 COMBINATIONS: tuple[str, ...] = get_args(Combination)
 
 #: Gas temperature models of the Kalman reconstructions.
-ModelKind = Literal["random-walk", "integrated-random-walk", "band-limited", "periodic"]
+ModelKind = Literal[
+    "random-walk", "integrated-random-walk", "band-limited", "periodic", "autoregressive"
+]
 MODELS: tuple[ModelKind, ...] = get_args(ModelKind)
 #: A model, or ``auto``: the most likely one, penalised by its number of settings.
 ModelChoice = Literal["auto", ModelKind]

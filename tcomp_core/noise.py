@@ -187,7 +187,7 @@ def model_noise(
     both sensors, y_i = G_i u + n_i, so the residual ε = y_f - (G_f/G_s) y_s of the faster
     sensor f predicted from the slower s holds noise only, ε = n_f - (G_f/G_s) n_s, and
 
-        S(y_f, ε) = σ_f²,    S(y_s, ε) = -σ_s² conj(G_f/G_s),
+        S(y_f, ε) = σ_f²,    S(y_s, ε) = -σ_s² G_f/G_s,    S(x, y) = E[conj(X) Y],
 
     whatever the gas does (ε is filtered in time, exactly, by a stable filter with the fast
     sensor's pole). These cross-spectra are unbiased but scatter more than the plain
@@ -228,7 +228,7 @@ def model_noise(
     omega = 2.0 * np.pi * freqs * dt
     ratio = _first_order_response(a_fast, omega) / _first_order_response(a_slow, omega)
     with np.errstate(divide="ignore", invalid="ignore"):
-        unbiased_slow = np.real(-cross_slow / np.conj(ratio))
+        unbiased_slow = np.real(-cross_slow / ratio)
     nyquist = 0.5 / dt
     edges = np.linspace(MODEL_NOISE_BAND[0], MODEL_NOISE_BAND[1], MODEL_SUB_BANDS + 1) * nyquist
     if np.count_nonzero((freqs >= edges[0]) & (freqs < edges[-1])) < 2 * MODEL_SUB_BANDS:

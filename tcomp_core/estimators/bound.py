@@ -99,4 +99,5 @@ def cramer_rao_bound(
     ndarray, shape (2, 2)
         The inverse Fisher information, s²; ``sqrt(diag)`` bounds the standard deviations.
     """
-    return np.linalg.inv(crb_fisher_information(gas, tau1, tau2, dt, sigma1, sigma2))
+    information = crb_fisher_information(gas, tau1, tau2, dt, sigma1, sigma2)
+    return np.asarray(np.linalg.inv(information), dtype=np.float64)

@@ -30,10 +30,19 @@ exactly (Van Loan):
     amplitude and phase wander. Suits periodic signals. (A damped resonator would make the
     model expect the amplitude to decay between the rare corrections a weak drive allows.)
 
+``autoregressive``
+    the gas's sample-to-sample change d_k as an autoregression of order p (8 to 32, Akaike
+    chooses) whose coefficients come from the gas spectrum seen in the cross-spectrum of the
+    two readings (Yule–Walker; the independent noises do not bias it) and whose innovation
+    variance q (°C² per sample) is fitted by maximum likelihood: a spectrum of any shape, e.g.
+    the 1/f-like spectrum of exhaust pulses. Discrete, so not discretised. Not among the
+    models ``auto`` compares (:data:`~.fitting.AUTO_MODELS`).
+
 Hyper-parameters are chosen by maximising the likelihood of the Kalman innovations
 (:mod:`scipy.optimize` on their logarithms), and the model by that likelihood less its number
-of hyper-parameters (Akaike). The noise levels σ_i come from the spectra
-(:func:`tcomp_core.noise.estimate_noise`) unless given.
+of hyper-parameters (Akaike). The noise levels σ_i come from the model
+(:func:`tcomp_core.noise.model_noise`: the spectra less the gas signal both share) unless
+given.
 
 For a time-invariant model the Kalman gain converges to a constant, found once from the
 discrete algebraic Riccati equation; filter and Rauch–Tung–Striebel smoother are then linear

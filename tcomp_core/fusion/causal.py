@@ -87,7 +87,11 @@ class CausalFuser:
         signal state differs (another kind or order) starts afresh (:meth:`reset`).
         """
         space = model.state_space()
-        same_state = (model.kind, model.order) == (self.model.kind, self.model.order)
+        same_state = (model.kind, model.order, len(model.ar)) == (
+            self.model.kind,
+            self.model.order,
+            len(self.model.ar),
+        )
         self.model, self._space, self._gains = model, space, steady_state(space)
         if not same_state:
             self.reset()

@@ -80,7 +80,8 @@ def fuse(
     tau1, tau2 : float
         Time constants, seconds.
     sigma1, sigma2 : float, optional
-        Noise standard deviations, degrees C; measured from the spectra when omitted.
+        Noise standard deviations, degrees C; measured from the model
+        (:func:`tcomp_core.noise.model_noise`) when omitted.
     model : str or FusionModel
         'auto' or a signal model name, fitted by maximum likelihood
         (:func:`fit_fusion_model`), or a :class:`FusionModel` used as it is (its dt, τ and σ

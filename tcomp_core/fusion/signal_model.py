@@ -57,6 +57,11 @@ class FusionModel:
         Random-walk intensity of the level, °C²/s (periodic and band-limited).
     order : int
         Butterworth order of the band-limited model's low-pass, 1 to 8.
+    ar : tuple of float
+        Coefficients φ_1..φ_p of the autoregressive model of the gas's sample-to-sample
+        change (``autoregressive``: d_k = Σ φ_j d_(k-j) + e_k, g_k = g_(k-1) + d_k, e_k of
+        variance ``q`` in °C² per sample); stationary (all roots of 1 - Σ φ_j z^-j inside the
+        unit circle).
     """
 
     kind: ModelKind
@@ -69,6 +74,7 @@ class FusionModel:
     freq_hz: float = 0.0
     level_q: float = 0.0
     order: int = 2
+    ar: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in MODELS:
@@ -82,6 +88,10 @@ class FusionModel:
             raise ValueError(f"freq_hz={self.freq_hz!r} must lie below the Nyquist frequency")
         if self.order not in range(1, 9):
             raise ValueError(f"order={self.order!r} must be an integer from 1 to 8")
+        if self.kind == "autoregressive":
+            roots = np.roots(np.concatenate(([1.0], -np.asarray(self.ar, dtype=np.float64))))
+            if not (len(self.ar) >= 1 and np.all(np.abs(roots) < 1.0)):
+                raise ValueError(f"ar={self.ar!r} must hold the coefficients of a stationary AR")
 
     def _positive_fields(self) -> tuple[str, ...]:
         names = ("tau1", "tau2", "sigma1", "sigma2", "q")
@@ -92,7 +102,38 @@ class FusionModel:
     @property
     def n_hyperparameters(self) -> int:
         """Number of hyper-parameters fitted by maximum likelihood."""
+        if self.kind == "autoregressive":
+            return len(self.ar) + 1
         return 3 if self.kind in ("band-limited", "periodic") else 1
+
+    def discrete_signal(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray]:
+        """Discrete ``autoregressive`` signal model ``x_k = F x_(k-1) + w_k``, ``g = c · x``.
+
+        State ``x_k = [g_k, d_k, d_(k-1), ..., d_(k-p+1)]``: the gas and its last p changes.
+
+        Returns
+        -------
+        transition, covariance : ndarray, shape (p + 1, p + 1)
+            F and the covariance of w per sample (°C²).
+        output : ndarray, shape (p + 1,)
+            c.
+        prior_std : ndarray, shape (p + 1,)
+            Diffuse prior standard deviations of x.
+        """
+        coefficients = np.asarray(self.ar, dtype=np.float64)
+        p = coefficients.size
+        transition = np.zeros((p + 1, p + 1))
+        transition[0, 0] = 1.0
+        transition[0, 1:] = coefficients
+        transition[1, 1:] = coefficients
+        transition[2:, 1:-1] = np.eye(p - 1)
+        drive = np.zeros(p + 1)
+        drive[:2] = 1.0
+        output = np.zeros(p + 1)
+        output[0] = 1.0
+        return transition, self.q * np.outer(drive, drive), output, np.full(p + 1, DIFFUSE_STD)
 
     def continuous_signal(
         self,
@@ -110,6 +151,8 @@ class FusionModel:
         prior_std : ndarray, shape (m,)
             Standard deviation of a diffuse prior on x (the causal filter's start).
         """
+        if self.kind == "autoregressive":
+            raise ValueError("the autoregressive model is discrete: see discrete_signal()")
         if self.kind == "random-walk":
             return np.zeros((1, 1)), np.full((1, 1), self.q), np.ones(1), np.full(1, DIFFUSE_STD)
         if self.kind == "integrated-random-walk":
@@ -133,8 +176,11 @@ class FusionModel:
 
     def state_space(self) -> StateSpace:
         """The augmented discrete model ``s_k = [x_{k-1}, T_1(k), T_2(k)]`` (module docstring)."""
-        dynamics, intensity, c_s, prior = self.continuous_signal()
-        f_s, q_s = _van_loan(dynamics, intensity, self.dt)
+        if self.kind == "autoregressive":
+            f_s, q_s, c_s, prior = self.discrete_signal()
+        else:
+            dynamics, intensity, c_s, prior = self.continuous_signal()
+            f_s, q_s = _van_loan(dynamics, intensity, self.dt)
         m = c_s.size
         poles = tau_to_pole([self.tau1, self.tau2], self.dt)
         gains = 1.0 - poles
