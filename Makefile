@@ -39,7 +39,7 @@ demo: $(STAMP)
 	@echo
 	@echo "== ROS 2: replay bags/rig_sine_5khz (5 kHz) into the compensator node =="
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(PY) -m tcomp_ros.demo --bag bags/rig_sine_5khz \
-		--param prefilter_hz:=200.0 --param update_period_s:=0.25
+		--param update_period_s:=0.25
 
 bench: $(STAMP)
 	$(PY) bench/bench_startup.py

@@ -287,8 +287,8 @@ def rate_block(runs: int, seed: int, rates: Sequence[int]) -> None:
     )
     print("eff = CRB std / std; |bias| < 0.5 % and std <= 1 % is the goal at K = 2 %")
     header = (
-        f"{'rate':>6} {'signal':<9}{'K %':>4}  {'method':<12}{'bias1':>8}{'std1':>7}"
-        f"{'crb1':>7}{'eff1':>6}{'bias2':>8}{'std2':>7}{'crb2':>7}{'eff2':>6}{'fail':>5}"
+        f"{'rate':>6} {'signal':<9}{'K %':>4}  {'method':<12}{'bias1':>9}{'std1':>8}"
+        f"{'crb1':>7}{'eff1':>6}{'bias2':>9}{'std2':>8}{'crb2':>7}{'eff2':>6}{'fail':>5}"
     )
     print(header)
     print("-" * len(header))
@@ -319,8 +319,8 @@ def rate_block(runs: int, seed: int, rates: Sequence[int]) -> None:
                     eff = crb / std
                     lead = f"{rate:>6} {kind:<9}{level:>4g}" if index == 0 else " " * 19
                     print(
-                        f"{lead}  {name:<12}{bias[0]:>+8.3f}{std[0]:>7.3f}{crb[0]:>7.3f}"
-                        f"{eff[0]:>6.2f}{bias[1]:>+8.3f}{std[1]:>7.3f}{crb[1]:>7.3f}"
+                        f"{lead}  {name:<12}{bias[0]:>+9.3f}{std[0]:>8.3f}{crb[0]:>7.3f}"
+                        f"{eff[0]:>6.2f}{bias[1]:>+9.3f}{std[1]:>8.3f}{crb[1]:>7.3f}"
                         f"{eff[1]:>6.2f}{failed:>5}",
                         flush=True,
                     )

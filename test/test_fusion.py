@@ -11,13 +11,13 @@ import pytest
 from sim_records import make_pair
 
 from tcomp_core.fusion import (
-    MODELS,
     CausalFuser,
     FusionModel,
     fit_fusion_model,
     fuse,
     linear_recursion,
 )
+from tcomp_core.fusion.fitting import AUTO_MODELS
 from tcomp_core.metrics import reconstruction_error_percent
 from tcomp_core.reconstruct import reconstruct
 
@@ -89,7 +89,7 @@ def test_likelihood_picks_the_signal_model(kind, model):
     for seed in SEEDS:
         result = fused(kind, seed)
         assert result.kind == model
-        assert set(result.candidates) == set(MODELS)
+        assert set(result.candidates) == set(AUTO_MODELS)
         assert result.log_likelihood == pytest.approx(max(result.candidates.values()), abs=5.0)
 
 
