@@ -121,8 +121,6 @@ MODEL_NOISE_BAND = (0.3, 0.95)
 MODEL_SUB_BANDS = 6
 #: A sub-band's signal leakage is removed only when it stands this many standard errors above 0.
 LEAKAGE_Z = 2.0
-#: Standard deviation of a normal variable per unit of its median absolute deviation.
-_MAD_TO_STD = 1.482602218505602
 #: Fast-sensor time constants skipped at the start of the model residual (its filter settles).
 _SETTLE_TIME_CONSTANTS = 10.0
 
@@ -151,25 +149,40 @@ def _first_order_response(a: float, omega: NDArray[np.float64]) -> NDArray:
     return (1.0 - a) * delay / (1.0 - a * delay)
 
 
-def _band_floor(auto: NDArray, unbiased: NDArray, freqs: NDArray, edges: NDArray) -> float:
-    """Noise floor over sub-bands: plain spectrum unless leakage shows; inverse-variance mean."""
+def _band_floor(
+    auto: NDArray, unbiased: NDArray, freqs: NDArray, edges: NDArray, dof: int
+) -> float | None:
+    """Noise floor over sub-bands, inverse-variance mean; None when the data cannot tell.
+
+    Per sub-band: where the leakage (plain minus unbiased, bin by bin) is broadband, its
+    median stands :data:`LEAKAGE_Z` standard errors above zero and the unbiased cross-spectrum
+    is averaged; otherwise the plain spectrum's low quantile is used as in
+    :func:`estimate_noise`, which harmonic lines (leakage in a few bins) do not reach.
+    """
     values, variances = [], []
+    correction = dof / float(stats.chi2.ppf(NOISE_QUANTILE, dof))
     for low, high in itertools.pairwise(edges):
         band = (freqs >= low) & (freqs < high)
         count = int(np.count_nonzero(band))
-        if count < 2:
+        if count < 4:
             continue
-        leakage = auto[band] - unbiased[band]
-        chosen = auto[band]
-        # The spread from the median absolute deviation: harmonic lines, which are leakage,
-        # must not widen the yardstick that leakage is measured against.
-        spread = _MAD_TO_STD * float(np.median(np.abs(leakage - np.median(leakage))))
-        if np.mean(leakage) > LEAKAGE_Z * spread / np.sqrt(count):
+        # Sign test: without leakage, plain minus unbiased is noise symmetric about zero, so
+        # about half the bins are positive; broadband leakage makes nearly all of them so.
+        positive = int(np.count_nonzero(auto[band] > unbiased[band]))
+        if positive > 0.5 * count + LEAKAGE_Z * 0.5 * np.sqrt(count):
             chosen = unbiased[band]
-        values.append(float(np.mean(chosen)))
-        variances.append(max(float(np.var(chosen, ddof=1)) / count, 1e-300))
+            values.append(float(np.mean(chosen)))
+            variances.append(max(float(np.var(chosen, ddof=1)) / count, 1e-300))
+        else:
+            level = float(np.quantile(auto[band], NOISE_QUANTILE)) * correction
+            values.append(level)
+            # a χ² floor known to about 1/√(dof/2 · count) relative
+            variances.append(max(level**2 * 2.0 / (dof * count), 1e-300))
+    if not values:
+        return None
     weights = 1.0 / np.asarray(variances)
-    return max(float(np.sum(weights * np.asarray(values)) / np.sum(weights)), 0.0)
+    floor = float(np.sum(weights * np.asarray(values)) / np.sum(weights))
+    return floor if floor > 0.0 else None
 
 
 def model_noise(
@@ -192,8 +205,12 @@ def model_noise(
     whatever the gas does (ε is filtered in time, exactly, by a stable filter with the fast
     sensor's pole). These cross-spectra are unbiased but scatter more than the plain
     auto-spectrum, so each of :data:`MODEL_SUB_BANDS` sub-bands of :data:`MODEL_NOISE_BAND`
-    uses them only where the leakage (plain minus unbiased) stands :data:`LEAKAGE_Z` standard
-    errors above zero; the sub-bands are averaged with inverse-variance weights.
+    uses them only where the leakage is broadband (plain above unbiased in more of the bins
+    than noise explains, by a sign test at :data:`LEAKAGE_Z` standard errors, as behind
+    exhaust pulses whose height varies); elsewhere the plain spectrum's low quantile, which
+    harmonic lines do not reach (:func:`estimate_noise`). The sub-bands are averaged with
+    inverse-variance weights. Where the gas swamps the noise everywhere, the plain spectral
+    estimate is returned.
 
     Parameters
     ----------
@@ -224,6 +241,7 @@ def model_noise(
     skip = min(math.ceil(_SETTLE_TIME_CONSTANTS * min(tau1, tau2) / dt), readings[0].size // 4)
     residual = (readings[fast] - predicted)[skip:]
     freqs, auto_fast, cross_fast = _difference_spectra(readings[fast][skip:], residual, dt)
+    segment = int(min(_SEGMENT, max(16, (residual.size - 1) // 8)))
     _, auto_slow, cross_slow = _difference_spectra(readings[slow][skip:], residual, dt)
     omega = 2.0 * np.pi * freqs * dt
     ratio = _first_order_response(a_fast, omega) / _first_order_response(a_slow, omega)
@@ -233,12 +251,15 @@ def model_noise(
     edges = np.linspace(MODEL_NOISE_BAND[0], MODEL_NOISE_BAND[1], MODEL_SUB_BANDS + 1) * nyquist
     if np.count_nonzero((freqs >= edges[0]) & (freqs < edges[-1])) < 2 * MODEL_SUB_BANDS:
         return estimate_noise(readings[0], dt), estimate_noise(readings[1], dt)
-    floors = [0.0, 0.0]
-    floors[fast] = _band_floor(auto_fast, np.real(cross_fast), freqs, edges)
-    floors[slow] = _band_floor(auto_slow, unbiased_slow, freqs, edges)
+    dof = 2 * max(1, (residual.size - 1 - segment) // (segment // 2) + 1)
+    found: list[float | None] = [None, None]
+    found[fast] = _band_floor(auto_fast, np.real(cross_fast), freqs, edges, dof)
+    found[slow] = _band_floor(auto_slow, unbiased_slow, freqs, edges, dof)
     band_hz = (float(edges[0]), float(edges[-1]))
-    noise1, noise2 = (
-        NoiseEstimate(sigma=float(np.sqrt(floor / (2.0 * dt))), floor=floor, band_hz=band_hz)
-        for floor in floors
-    )
-    return noise1, noise2
+    noises = [
+        estimate_noise(reading, dt)  # the data cannot separate noise from gas: the spectrum
+        if floor is None
+        else NoiseEstimate(sigma=float(np.sqrt(floor / (2.0 * dt))), floor=floor, band_hz=band_hz)
+        for reading, floor in zip(readings, found, strict=True)
+    ]
+    return noises[0], noises[1]

@@ -105,15 +105,27 @@ def test_phi_from_the_model_within_ten_percent(kind, phi, noise_percent):
     assert noise2.sigma == pytest.approx(pair.sigma2, rel=0.05)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_phi_from_the_model_sees_through_sharp_edges(seed):
-    # Exhaust pulses leak far above the fast sensor's noise at 1 kHz: the spectrum alone reads
-    # signal as noise (φ̂ 25-40 % high), the model removes what both sensors share.
-    pair = simulate_pair("exhaust", dt=1e-3, duration=10.0, noise_percent=2.0, seed=seed)
+    # Exhaust pulses of varying height leak far above the fast sensor's noise at 2 kHz and
+    # K = 0.5 %: the spectrum alone reads signal as noise (φ̂ 55-65 % high), the model removes
+    # what both sensors share (within ±26 % on these seeds: unbiased, but scattered).
+    pair = simulate_pair(
+        "exhaust", dt=5e-4, duration=10.0, noise_percent=0.5, seed=seed, warmup=1.0
+    )
     spectral = phi_from_data(pair.tc1, pair.tc2, pair.dt)
     modelled = phi_from_data(pair.tc1, pair.tc2, pair.dt, taus=(pair.tau1, pair.tau2))
-    assert spectral > 1.2
-    assert abs(modelled - 1.0) < min(0.2, abs(spectral - 1.0))
+    assert spectral > 1.4
+    assert abs(modelled - 1.0) < 0.3
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_phi_from_the_model_reads_through_harmonic_lines(seed):
+    # A periodic ramp at 1 kHz puts its harmonics above the noise across the band: lines, which
+    # the low quantile of each sub-band steps over.
+    pair = simulate_pair("ramp", dt=1e-3, duration=10.0, noise_percent=1.0, phi=0.1, seed=seed)
+    modelled = phi_from_data(pair.tc1, pair.tc2, pair.dt, taus=(pair.tau1, pair.tau2))
+    assert modelled == pytest.approx(0.1, rel=0.15)
 
 
 def test_model_noise_is_symmetric_in_the_sensors():

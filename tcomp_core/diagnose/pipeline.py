@@ -137,7 +137,7 @@ def _notes(data: PreparedData, evaluator: Evaluator) -> list[str]:
             f"above {max(data.band_edge_hz):.3g} Hz"
         )
     notes.append(
-        f"noise from the spectra: sigma1 = {data.noise1.sigma:.3g} degC, sigma2 = "
+        f"noise from the {data.noise_source}: sigma1 = {data.noise1.sigma:.3g} degC, sigma2 = "
         f"{data.noise2.sigma:.3g} degC (phi = {data.phi_hat:.3g})"
     )
     measured = (data.tc1, data.tc2)[evaluator.slow - 1]

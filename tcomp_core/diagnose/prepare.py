@@ -3,7 +3,9 @@
 Records sampled far faster than the thermocouples respond (a 5 kHz rig for a 10 Hz signal) are
 decimated first: the difference equation then sees a usable change per sample, and the
 anti-alias filter leaves white noise white (its variance divided by the factor). The noise of
-each sensor is measured on the raw record (:mod:`tcomp_core.noise`). The record is cut into
+each sensor is measured on the raw record, from the model with the default estimator's τ
+(:func:`tcomp_core.noise.model_noise`: the spectra less the gas signal both sensors share), or
+from the spectra alone when no τ can be estimated. The record is cut into
 equal blocks; even blocks estimate, odd blocks validate, so slowly varying effects are seen on
 both sides of every held-out block.
 """
@@ -17,9 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
-from ..errors import DataError, NoExcitationError
+from ..errors import DataError, NoExcitationError, TcompError
+from ..estimators import estimate
 from ..io import Record
-from ..noise import NoiseEstimate, estimate_noise, signal_band_edge
+from ..noise import NoiseEstimate, estimate_noise, model_noise, signal_band_edge
 from ..validation import check_excitation
 
 __all__ = ["PreparedData", "block_length_s", "prepare"]
@@ -55,6 +58,8 @@ class PreparedData:
         Raw samples per working sample.
     noise1, noise2 : NoiseEstimate
         Noise of each sensor on the raw record.
+    noise_source : {'model', 'spectra'}
+        Where the noise levels came from (:func:`_raw_noise`).
     band_edge_hz : tuple of float
         Highest frequency each sensor carries above its noise, Hz (raw record).
     validation : ndarray of bool, shape (N,)
@@ -75,6 +80,7 @@ class PreparedData:
     band_edge_hz: tuple[float, float]
     validation: NDArray[np.bool_]
     block_starts: NDArray[np.intp]
+    noise_source: str = "spectra"
 
     @property
     def phi_hat(self) -> float:
@@ -119,6 +125,16 @@ def _decimation_factor(dt: float, band_edge_hz: float) -> int:
     return max(1, math.floor(1.0 / (dt * rate)))
 
 
+def _raw_noise(record: Record) -> tuple[NoiseEstimate, NoiseEstimate, str]:
+    """Noise of each sensor on the raw record and its source: the model, else the spectra."""
+    try:
+        found = estimate(record.tc1, record.tc2, record.dt)
+    except TcompError:
+        spectral = estimate_noise(record.tc1, record.dt), estimate_noise(record.tc2, record.dt)
+        return *spectral, "spectra"
+    return *model_noise(record.tc1, record.tc2, record.dt, found.tau1, found.tau2), "model"
+
+
 def prepare(record: Record) -> PreparedData:
     """Decimate, measure the noise and cut the held-out blocks of a record.
 
@@ -138,7 +154,7 @@ def prepare(record: Record) -> PreparedData:
         check_excitation(record.tc1, record.tc2)
     except NoExcitationError as exc:
         raise NoExcitationError(f"{record.source}: {exc}") from exc
-    noise1, noise2 = estimate_noise(record.tc1, record.dt), estimate_noise(record.tc2, record.dt)
+    noise1, noise2, noise_source = _raw_noise(record)
     edges = (
         signal_band_edge(record.tc1, record.dt, noise1.floor),
         signal_band_edge(record.tc2, record.dt, noise2.floor),
@@ -173,6 +189,7 @@ def prepare(record: Record) -> PreparedData:
         decimation=factor,
         noise1=noise1,
         noise2=noise2,
+        noise_source=noise_source,
         band_edge_hz=edges,
         validation=validation,
         block_starts=starts,

@@ -121,7 +121,8 @@ def _noise_ratio(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     data = evaluator.data
     return (
         f"the noise floors differ: sigma1 = {data.noise1.sigma:.3g} degC, sigma2 = "
-        f"{data.noise2.sigma:.3g} degC in the top of the spectra (phi = {data.phi_hat:.3g}), so "
+        f"{data.noise2.sigma:.3g} degC (from the {data.noise_source}, "
+        f"phi = {data.phi_hat:.3g}), so "
         f"GTLS with phi = 1 weights them wrongly; refit with phi: tau1 {current.tau1:.4g} -> "
         f"{fit.tau1:.4g} s, tau2 {current.tau2:.4g} -> {fit.tau2:.4g} s"
     )

@@ -44,10 +44,13 @@ def _stop(process, signum=signal.SIGINT, timeout=10.0):
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, spin_until, signum):
+    # Reliable inputs: the replay publishes reliably, and "no pair dropped" below holds only
+    # with delivery that retransmits (best effort, the default, may lose one under load).
     compensator = _start(
         "tcomp_ros.compensator",
         ros_domain_id,
         *("-p", "window_s:=4.0", "-p", "update_period_s:=0.25"),
+        *("-p", "input_reliability:=reliable"),
     )
     replay = _start(
         "tcomp_ros.replay",
