@@ -139,7 +139,8 @@ class Diagnosis:
     eval_cutoff_hz : float
         Low-pass cutoff applied to both compared signals in the held-out error, Hz.
     sigma1, sigma2 : float
-        Noise standard deviations estimated from the spectra, degrees C.
+        Noise standard deviations, degrees C: from the spectra less the gas signal both
+        sensors share (:func:`tcomp_core.noise.model_noise`), or the spectra alone.
     phi : float
         Estimated noise variance ratio ``sigma1**2 / sigma2**2``.
     base : ModelFit

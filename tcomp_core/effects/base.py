@@ -68,7 +68,7 @@ class FitContext:
     knot_spacing_s : float
         Spacing of the spline knots of slowly varying quantities (velocity), s.
     phi_hat : float
-        Noise variance ratio σ1²/σ2² estimated from the spectra.
+        Noise variance ratio σ1²/σ2² estimated from the spectra by the model.
     tau_scale_s : float
         A rough time constant of the slower sensor, s, to scale delays and slow modes.
     sigma2 : float

@@ -57,7 +57,8 @@ def make_context(
     dt : float
         Sample interval, s.
     phi_hat : float
-        Noise variance ratio σ1²/σ2² measured from the spectra.
+        Noise variance ratio σ1²/σ2² measured from the spectra by the model
+        (:func:`tcomp_core.noise.model_noise`).
     knot_spacing_s : float, optional
         Knot spacing of slowly varying quantities; default a tenth of the record.
     tau_scale_s : float, optional

@@ -16,7 +16,7 @@ __all__ = ["NoiseRatio"]
 
 
 class NoiseRatio(Effect):
-    """φ = σ1²/σ2², measured from the spectra."""
+    """φ = σ1²/σ2², measured from the spectra by the model."""
 
     name = "noise_ratio"
     summary = "the sensors' noise variances differ (phi from the spectra)"

@@ -75,7 +75,7 @@ def phi_from_data(
     dt: float,
     taus: tuple[float, float] | None = None,
 ) -> float:
-    """Noise variance ratio φ = σ1²/σ2² measured from the top of the two spectra.
+    """Noise variance ratio φ = σ1²/σ2² measured from the top of the two spectra (or the model).
 
     Parameters
     ----------
