@@ -319,8 +319,8 @@ def rate_block(runs: int, seed: int, rates: Sequence[int]) -> None:
                     eff = crb / std
                     lead = f"{rate:>6} {kind:<9}{level:>4g}" if index == 0 else " " * 19
                     print(
-                        f"{lead}  {name:<12}{bias[0]:>+9.3f}{std[0]:>8.3f}{crb[0]:>7.3f}"
-                        f"{eff[0]:>6.2f}{bias[1]:>+9.3f}{std[1]:>8.3f}{crb[1]:>7.3f}"
+                        f"{lead}  {name:<12}{bias[0]:>+9.3f} {std[0]:>7.3f}{crb[0]:>7.3f}"
+                        f"{eff[0]:>6.2f}{bias[1]:>+9.3f} {std[1]:>7.3f}{crb[1]:>7.3f}"
                         f"{eff[1]:>6.2f}{failed:>5}",
                         flush=True,
                     )
