@@ -107,7 +107,11 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
         record.dt,
         tau1,
         tau2,
-        phi=args.phi if args.phi is not None else phi_from_data(record.tc1, record.tc2, record.dt),
+        phi=(
+            args.phi
+            if args.phi is not None
+            else phi_from_data(record.tc1, record.tc2, record.dt, taus=(tau1, tau2))
+        ),
         combine=args.combine,
         postfilter_hz=args.postfilter_hz,
         time=record.time,
