@@ -17,7 +17,7 @@ from tcomp_core.fusion import (
     fuse,
     linear_recursion,
 )
-from tcomp_core.fusion.fitting import AUTO_MODELS
+from tcomp_core.fusion.fitting import AR_ORDERS, AUTO_MODELS
 from tcomp_core.metrics import reconstruction_error_percent
 from tcomp_core.reconstruct import reconstruct
 
@@ -71,10 +71,11 @@ def test_smoother_no_worse_than_the_paper_postfilter_on_a_sinusoid():
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("kind", "factor"), [("ramp", 1.0), ("sinusoid", 1.0), ("multisine", 1.4)]
+    ("kind", "factor"), [("ramp", 1.0), ("sinusoid", 1.0), ("multisine", 1.05)]
 )
 def test_smoother_against_the_hindsight_oracle(kind, factor):
-    # Ramp and sinusoid: better than the best post-filter; broadband: within 40 % of it.
+    # Ramp and sinusoid: better than the best post-filter; broadband: within 5 % of it (the
+    # autoregressive model; 23 % worse with the band-limited one it replaced in `auto`).
     for seed in SEEDS[:2]:
         pair = paper_record(kind, seed)
         assert error(pair, fused(kind, seed).gas) <= factor * oracle_error(pair), seed
@@ -83,14 +84,17 @@ def test_smoother_against_the_hindsight_oracle(kind, factor):
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "model"),
-    [("ramp", "random-walk"), ("multisine", "band-limited"), ("sinusoid", "periodic")],
+    [("ramp", "random-walk"), ("multisine", "autoregressive"), ("sinusoid", "periodic")],
 )
 def test_likelihood_picks_the_signal_model(kind, model):
     for seed in SEEDS:
         result = fused(kind, seed)
         assert result.kind == model
         assert set(result.candidates) == set(AUTO_MODELS)
-        assert result.log_likelihood == pytest.approx(max(result.candidates.values()), abs=5.0)
+        # Akaike: the chosen model gives up at most the largest penalty difference (the
+        # autoregressive model's order + 1) against the best raw likelihood.
+        best = max(result.candidates.values())
+        assert best - (max(AR_ORDERS) + 1) <= result.log_likelihood <= best
 
 
 @pytest.mark.slow

@@ -35,8 +35,10 @@ exactly (Van Loan):
     chooses) whose coefficients come from the gas spectrum seen in the cross-spectrum of the
     two readings (Yule–Walker; the independent noises do not bias it) and whose innovation
     variance q (°C² per sample) is fitted by maximum likelihood: a spectrum of any shape, e.g.
-    the 1/f-like spectrum of exhaust pulses. Discrete, so not discretised. Not among the
-    models ``auto`` compares (:data:`~.fitting.AUTO_MODELS`).
+    the 1/f-like spectrum of a broadband multisine with its band edge, or of exhaust pulses.
+    Bins where the cross-spectrum does not stand above its noise count as empty, and a floor
+    six decades below the peak keeps the roots off the unit circle. Discrete, so not
+    discretised.
 
 Hyper-parameters are chosen by maximising the likelihood of the Kalman innovations
 (:mod:`scipy.optimize` on their logarithms), and the model by that likelihood less its number

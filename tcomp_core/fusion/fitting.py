@@ -50,15 +50,17 @@ FREQUENCY_SPAN = 0.02
 BAND_LIMITED_ORDERS = (2, 4, 8)
 #: Search range of the band-limited model's cut-off as a fraction of the Nyquist frequency.
 CUTOFF_RANGE = (1e-3, 0.9)
-#: Models ``auto`` compares. ``autoregressive`` is left out: its Yule–Walker coefficients come
-#: from a noisy cross-spectrum, and the likelihood then prefers it where its reconstruction is
-#: worse (multisine, K = 4 %: e_Tg 18.8 % against 15.6 % band-limited; on exhaust pulses it
-#: is better, 12.3 % against 16.0 %). Ask for it by name.
-AUTO_MODELS: tuple[ModelKind, ...] = tuple(kind for kind in MODELS if kind != "autoregressive")
+#: Models ``auto`` compares: all of them.
+AUTO_MODELS: tuple[ModelKind, ...] = MODELS
 #: Orders of the autoregressive model of the gas's changes tried (Akaike chooses).
 AR_ORDERS = (8, 16, 24, 32)
 #: Search range of log10(q / q_YW), q_YW the Yule–Walker innovation variance.
 AR_SCALE_RANGE = (-3.0, 3.0)
+#: Floor of the gas-change spectrum the autoregression is fitted to, relative to its peak.
+AR_SPECTRUM_FLOOR = 1e-6
+#: Largest modulus of an autoregression's roots accepted (an order with a root closer to the
+#: unit circle is skipped: its smoother is numerically unstable).
+AR_MAX_ROOT = 1.0 - 1e-4
 #: Samples per Welch segment of the gas spectrum the autoregressive model is fitted to.
 AR_SEGMENT = 1024
 
@@ -243,8 +245,9 @@ def _gas_change_autocovariance(fit: _Fitting) -> NDArray[np.float64]:
 
     The gas spectrum comes from the cross-spectrum of the two readings, which their
     independent noises do not bias: E[conj(Y1) Y2] = conj(G1) G2 S_g, so S_g is its
-    component along the phase of conj(G1) G2 divided by |G1 G2| (negative estimates clipped
-    to zero). The change's spectrum is S_g |1 - e^(-iω)|².
+    component along the phase of conj(G1) G2 divided by |G1 G2| (negative estimates set
+    to zero, as are bins where it does not stand two standard errors above the noise, so the
+    stop band of a band-limited gas stays empty). The change's spectrum is S_g |1 - e^(-iω)|².
     """
     count = fit.y.shape[1]
     nperseg = int(min(AR_SEGMENT, max(32, count // 4)))
@@ -254,8 +257,18 @@ def _gas_change_autocovariance(fit: _Fitting) -> NDArray[np.float64]:
     delay = np.exp(-1j * omega)
     g1, g2 = ((1.0 - a) * delay / (1.0 - a * delay) for a in poles)
     shared = np.conj(g1) * g2
-    gas = np.maximum(np.real(cross * np.conj(shared)) / np.abs(shared) ** 2, 0.0)
+    along = np.real(cross * np.conj(shared)) / np.abs(shared)  # |G1 G2| S_g plus noise
+    # Noise of that component per bin: sqrt(S11 S22 / (2 K)), K Welch segments (about
+    # count / (nperseg / 2) with half overlap); bins within two of it hold no gas signal.
+    _, auto1 = signal.welch(fit.y[0], fs=1.0 / fit.base.dt, nperseg=nperseg)
+    _, auto2 = signal.welch(fit.y[1], fs=1.0 / fit.base.dt, nperseg=nperseg)
+    segments = max(1.0, count / (0.5 * nperseg) - 1.0)
+    threshold = 2.0 * np.sqrt(auto1 * auto2 / (2.0 * segments))
+    gas = np.where(along > threshold, along, 0.0) / np.abs(shared)
     change = gas * 4.0 * np.sin(0.5 * omega) ** 2
+    # A floor far below the peak keeps the Toeplitz system of Yule–Walker well conditioned and
+    # the autoregression's roots off the unit circle, where the smoother would blow up.
+    change = change + AR_SPECTRUM_FLOOR * float(np.max(change))
     # One-sided density (°C²/Hz) to autocovariance: r_k = ∫ S(f) cos(2π f k dt) df.
     return np.fft.irfft(change) / (2.0 * fit.base.dt)
 
@@ -287,6 +300,9 @@ def _fit_autoregressive(fit: _Fitting) -> FusionModel:
         coefficients = scipy.linalg.solve_toeplitz(
             autocovariance[:order], autocovariance[1 : order + 1]
         )
+        roots = np.roots(np.concatenate(([1.0], -coefficients)))
+        if not np.max(np.abs(roots)) <= AR_MAX_ROOT:
+            continue
         reference = max(
             float(autocovariance[0] - coefficients @ autocovariance[1 : order + 1]),
             1e-12 * float(autocovariance[0]),

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..errors import EstimationError
 from ..validation import check_pair
 from .causal import CausalFuser
 from .fitting import fit_fusion_model
@@ -112,7 +113,13 @@ def fuse(
         gas, std = np.append(gas, ahead), np.append(std, ahead_std)
         log_likelihood = fuser.log_likelihood
     else:
-        gas, std, log_likelihood = smoothed_gas(fitted, first, second)
+        with np.errstate(over="ignore", invalid="ignore"):
+            gas, std, log_likelihood = smoothed_gas(fitted, first, second)
+    if not (np.all(np.isfinite(gas)) and np.all(np.isfinite(std))):
+        raise EstimationError(
+            f"the Kalman reconstruction with the {fitted.kind} signal model is numerically "
+            "unstable on this record (non-finite output); choose another signal model"
+        )
     return FusionResult(
         time=np.arange(first.size, dtype=np.float64) * fitted.dt,
         gas=gas,
