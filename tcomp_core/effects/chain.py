@@ -31,7 +31,13 @@ from scipy import signal
 
 from .base import KELVIN
 
-__all__ = ["SensorChain", "fractional_shift", "gas_from_reading", "reading_from_gas"]
+__all__ = [
+    "SensorChain",
+    "bilinear_first_order",
+    "fractional_shift",
+    "gas_from_reading",
+    "reading_from_gas",
+]
 
 #: Numerator and denominator ``(b, a)`` of a digital filter, as :func:`scipy.signal.lfilter` takes.
 FilterCoefficients = tuple[NDArray[np.float64], NDArray[np.float64]]
@@ -83,9 +89,29 @@ class SensorChain:
         if self.kappa == 0.0:
             return None
         fs = 1.0 / dt
-        forward = signal.bilinear([self.tau_p, 1.0], [self.tau_p, 1.0 + self.kappa], fs)
-        inverse = signal.bilinear([self.tau_p, 1.0 + self.kappa], [self.tau_p, 1.0], fs)
+        forward = bilinear_first_order((self.tau_p, 1.0), (self.tau_p, 1.0 + self.kappa), fs)
+        inverse = bilinear_first_order((self.tau_p, 1.0 + self.kappa), (self.tau_p, 1.0), fs)
         return forward, inverse
+
+
+def bilinear_first_order(
+    numerator: tuple[float, float], denominator: tuple[float, float], fs: float
+) -> FilterCoefficients:
+    """Bilinear transform of ``(n0 s + n1) / (d0 s + d1)``, as :func:`scipy.signal.bilinear`.
+
+    With s = 2 fs (1 - z⁻¹)/(1 + z⁻¹) both polynomials become ``(2 fs c0 + c1) + (c1 - 2 fs c0)
+    z⁻¹``; normalised by the denominator's first coefficient. Closed form because the diagnosis
+    builds these filters for every candidate parameter set, and scipy's general routine (through
+    numpy.polynomial objects) took two thirds of a diagnosis's time.
+
+    Returns
+    -------
+    b, a : ndarray, shape (2,)
+    """
+    k = 2.0 * fs
+    b = np.array([k * numerator[0] + numerator[1], numerator[1] - k * numerator[0]])
+    a = np.array([k * denominator[0] + denominator[1], denominator[1] - k * denominator[0]])
+    return b / a[0], a / a[0]
 
 
 def _steady_filter(
