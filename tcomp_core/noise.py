@@ -154,10 +154,10 @@ def _band_floor(
 ) -> float | None:
     """Noise floor over sub-bands, inverse-variance mean; None when the data cannot tell.
 
-    Per sub-band: where the leakage (plain minus unbiased, bin by bin) is broadband, its
-    median stands :data:`LEAKAGE_Z` standard errors above zero and the unbiased cross-spectrum
-    is averaged; otherwise the plain spectrum's low quantile is used as in
-    :func:`estimate_noise`, which harmonic lines (leakage in a few bins) do not reach.
+    Per sub-band: where the leakage (plain minus unbiased, bin by bin) is broadband, a sign
+    test at :data:`LEAKAGE_Z` standard errors finds more positive bins than noise explains and
+    the unbiased cross-spectrum is averaged; otherwise the plain spectrum's low quantile is used
+    as in :func:`estimate_noise`, which harmonic lines (leakage in a few bins) do not reach.
     """
     values, variances = [], []
     correction = dof / float(stats.chi2.ppf(NOISE_QUANTILE, dof))
