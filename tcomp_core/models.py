@@ -21,7 +21,7 @@ from scipy import signal
 from .errors import PhysicalRangeError
 from .validation import check_finite, check_sample_interval
 
-__all__ = ["FirstOrderLag", "pole_to_tau", "tau_to_pole"]
+__all__ = ["FirstOrderLag", "lag_frequency_response", "pole_to_tau", "tau_to_pole"]
 
 
 def tau_to_pole(tau: ArrayLike, dt: float) -> NDArray[np.float64]:
@@ -38,6 +38,20 @@ def tau_to_pole(tau: ArrayLike, dt: float) -> NDArray[np.float64]:
     if np.any(~(tau > 0.0)):
         raise ValueError(f"time constant {tau!r} s must be > 0")
     return np.exp(-check_sample_interval(dt) / tau)
+
+
+def lag_frequency_response(pole: float, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """Frequency response G(ω) = (1 - a) e^(-iω) / (1 - a e^(-iω)) of the ZOH lag (Eq. 4).
+
+    Parameters
+    ----------
+    pole : float
+        Discrete pole a = exp(-dt/τ).
+    omega : ndarray
+        Angular frequency, rad per sample.
+    """
+    delay = np.exp(-1j * np.asarray(omega, dtype=np.float64))
+    return (1.0 - pole) * delay / (1.0 - pole * delay)
 
 
 def pole_to_tau(a: float, dt: float, label: str = "a") -> float:

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal, stats
 
+from .models import lag_frequency_response
 from .validation import check_sample_interval
 
 __all__ = ["NoiseEstimate", "estimate_noise", "model_noise", "signal_band_edge"]
@@ -143,12 +144,6 @@ def _difference_spectra(
     return freqs, auto / gain, cross / gain
 
 
-def _first_order_response(a: float, omega: NDArray[np.float64]) -> NDArray:
-    """Frequency response of the zero-order-hold first-order lag with pole a at ω (rad/sample)."""
-    delay = np.exp(-1j * omega)
-    return (1.0 - a) * delay / (1.0 - a * delay)
-
-
 def _band_floor(
     auto: NDArray, unbiased: NDArray, freqs: NDArray, edges: NDArray, dof: int
 ) -> float | None:
@@ -244,7 +239,7 @@ def model_noise(
     segment = int(min(_SEGMENT, max(16, (residual.size - 1) // 8)))
     _, auto_slow, cross_slow = _difference_spectra(readings[slow][skip:], residual, dt)
     omega = 2.0 * np.pi * freqs * dt
-    ratio = _first_order_response(a_fast, omega) / _first_order_response(a_slow, omega)
+    ratio = lag_frequency_response(a_fast, omega) / lag_frequency_response(a_slow, omega)
     with np.errstate(divide="ignore", invalid="ignore"):
         unbiased_slow = np.real(-cross_slow / ratio)
     nyquist = 0.5 / dt

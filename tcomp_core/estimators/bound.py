@@ -20,9 +20,12 @@ knows it, can do better.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..models import lag_frequency_response
 from ..validation import check_sample_interval
 
 __all__ = ["cramer_rao_bound", "crb_fisher_information"]
@@ -32,13 +35,11 @@ def _response_and_derivative(
     tau: float, dt: float, omega: NDArray[np.float64]
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
     """G(ω) = (1 - a) z / (1 - a z), z = e^(-iω), a = e^(-dt/τ), and ∂G/∂τ, per second."""
-    a = np.exp(-dt / tau)
+    a = math.exp(-dt / tau)
     z = np.exp(-1j * omega)
-    denominator = 1.0 - a * z
-    response = (1.0 - a) * z / denominator
     # ∂G/∂a = z (z - 1) / (1 - a z)², ∂a/∂τ = a dt / τ².
-    derivative = z * (z - 1.0) / denominator**2 * (a * dt / tau**2)
-    return response, derivative
+    derivative = z * (z - 1.0) / (1.0 - a * z) ** 2 * (a * dt / tau**2)
+    return lag_frequency_response(a, omega), derivative
 
 
 def crb_fisher_information(

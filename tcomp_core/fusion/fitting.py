@@ -18,7 +18,7 @@ import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
-from ..models import tau_to_pole
+from ..models import lag_frequency_response, tau_to_pole
 from ..noise import model_noise
 from ..reconstruct import Reconstruction, reconstruct
 from ..validation import check_pair, check_sample_interval
@@ -254,8 +254,7 @@ def _gas_change_autocovariance(fit: _Fitting) -> NDArray[np.float64]:
     freqs, cross = signal.csd(fit.y[0], fit.y[1], fs=1.0 / fit.base.dt, nperseg=nperseg)
     omega = 2.0 * math.pi * freqs * fit.base.dt
     poles = tau_to_pole([fit.base.tau1, fit.base.tau2], fit.base.dt)
-    delay = np.exp(-1j * omega)
-    g1, g2 = ((1.0 - a) * delay / (1.0 - a * delay) for a in poles)
+    g1, g2 = (lag_frequency_response(float(a), omega) for a in poles)
     shared = np.conj(g1) * g2
     along = np.real(cross * np.conj(shared)) / np.abs(shared)  # |G1 G2| S_g plus noise
     # Noise of that component per bin: sqrt(S11 S22 / (2 K)), K Welch segments (about
