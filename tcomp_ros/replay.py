@@ -11,6 +11,11 @@ links the last sample of one pass to the first of the next: the sensors' states 
 replay runs on a steady wall-clock timer whatever ``use_sim_time`` says: under simulated time a
 ROS timer would wait for the very clock this node is meant to publish.
 
+``wait_for_subscribers: N`` holds the first message until the two sensor topics (tc1, tc2; not
+the reference) each have at least N matched subscriptions, then starts the clock: DDS discovers
+each topic on its own, so without it a consumer started beside the replay may receive the first
+messages of one sensor and not the other's.
+
 ``source: simulate`` generates live two-thermocouple data (:mod:`tcomp_core.simulate`) stamped
 from the node's clock instead.
 
@@ -71,6 +76,13 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
     ),
     "loop": (False, ParameterDescriptor(description="restart the bag at its end")),
     "publish_clock": (False, ParameterDescriptor(description="publish /clock (bag time)")),
+    "wait_for_subscribers": (
+        0,
+        ParameterDescriptor(
+            description="hold the start until tc1 and tc2 each have this many subscriptions",
+            integer_range=[IntegerRange(from_value=0, to_value=1000, step=1)],
+        ),
+    ),
     "signal": ("sinusoid", ParameterDescriptor(description=f"one of {', '.join(SIGNALS)}")),
     "tau1": (0.0238, ParameterDescriptor(description="s", floating_point_range=_range(1e-6, 1e3))),
     "tau2": (0.1168, ParameterDescriptor(description="s", floating_point_range=_range(1e-6, 1e3))),
@@ -120,8 +132,10 @@ class ReplayNode(Node):
         value = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.rate = float(value["rate"])
         self.loop = bool(value["loop"])
+        self.wait_for_subscribers = int(value["wait_for_subscribers"])
         if value["signal"] not in SIGNALS:
             raise DataError(f"signal={value['signal']!r} is not one of {', '.join(SIGNALS)}")
+        self._live = value["source"] == "simulate"
         if value["source"] == "bag":
             self._load_bag(Path(str(value["bag"])))
         elif value["source"] == "simulate":
@@ -138,7 +152,12 @@ class ReplayNode(Node):
         self.published = 0
         self._next = 0
         self._pass = 0
-        self._started = time.monotonic()
+        self._started: float | None = None
+        if self.wait_for_subscribers:
+            self.get_logger().info(
+                f"waiting for {self.wait_for_subscribers} subscription(s) on each of "
+                f"{', '.join(self.topics[:2])}"
+            )
         self.create_timer(TICK_S, self._tick, clock=RosClock(clock_type=ClockType.STEADY_TIME))
 
     def _load_bag(self, path: Path) -> None:
@@ -193,6 +212,14 @@ class ReplayNode(Node):
     def _tick(self) -> None:
         if self.done:
             return
+        if self._started is None:
+            sensors = self._topic_publishers[:2]  # the reference is for scoring, not required
+            counts = [publisher.get_subscription_count() for publisher in sensors]
+            if min(counts) < self.wait_for_subscribers:
+                return
+            self._started = time.monotonic()
+            if self._live:  # live stamps start now, not at construction
+                self.stamps = self.stamps - self.stamps[0] + self.get_clock().now().nanoseconds
         elapsed_ns = (time.monotonic() - self._started) * self.rate * 1e9
         due_offset = self.stamps[0] + elapsed_ns - self._pass * self.period_ns
         end = int(np.searchsorted(self.stamps, due_offset, side="right"))

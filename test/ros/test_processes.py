@@ -57,6 +57,7 @@ def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, sp
         "tcomp_ros.replay",
         ros_domain_id,
         *("-p", f"bag:={BAGS / 'ramp_500hz'}", "-p", "rate:=2.0", "-p", "loop:=true"),
+        *("-p", "wait_for_subscribers:=1"),
     )
     statuses = []
     node = Node("watcher", context=ros_context)
@@ -89,10 +90,10 @@ def test_replay_process_feeds_compensator_process(ros_context, ros_domain_id, sp
     assert float(values["tau2_s"]) == pytest.approx(PAPER_TAU2, rel=0.03)
     # Nothing lost in the stream: when the looping replay starts the bag over before this
     # report, the stamps jump back and the samples that show it (DISCONTINUITY_SAMPLES per
-    # restart) are dropped; at start-up a message published before discovery completed leaves
-    # its partner unmatched (DDS volatile durability), at most one pair (seen once in 14 runs).
+    # restart) are dropped, nothing else. (Without wait_for_subscribers DDS discovers the two
+    # topics independently and up to 5 leading tc1 messages went unpaired.)
     restarts = int(values["discontinuities"])
-    assert int(values["dropped"]) <= restarts * DISCONTINUITY_SAMPLES + 2
+    assert int(values["dropped"]) == restarts * DISCONTINUITY_SAMPLES
     assert (replay_code, compensator_code) == (0, 0), (replay_err[-2000:], compensator_err[-2000:])
     assert "Traceback" not in replay_err + compensator_err
 

@@ -123,6 +123,42 @@ def test_loop_replays_with_increasing_stamps(ros_context, spin_until, small_bag)
     assert got[stamps.size] == stamps[-1] + (1 + LOOP_GAP_STEPS) * 1_000_000
 
 
+def test_wait_for_subscribers_holds_the_start_until_every_topic_is_matched(
+    ros_context, spin_until, small_bag
+):
+    path, stamps, _ = small_bag
+    replay = ReplayNode(
+        context=ros_context,
+        parameter_overrides=[
+            Parameter("bag", value=str(path)),
+            Parameter("rate", value=4.0),
+            Parameter("wait_for_subscribers", value=1),
+        ],
+    )
+    executor = make_executor(ros_context)
+    executor.add_node(replay)
+    collectors = []
+    try:
+        spin_until(executor, lambda: False, 1.0)  # > the whole bag at 4x: nobody listens yet
+        assert replay.published == 0
+        collectors.append(Collector(ros_context, topics=TOPICS[:1]))  # tc2 still unmatched
+        executor.add_node(collectors[-1].node)
+        spin_until(executor, lambda: False, 1.0)
+        assert replay.published == 0
+        collectors.append(Collector(ros_context, topics=TOPICS[:2]))  # tref is not waited for
+        executor.add_node(collectors[-1].node)
+        assert spin_until(executor, lambda: replay.done, 10.0)
+        spin_until(executor, lambda: False, 0.3)
+    finally:
+        executor.shutdown()
+        replay.destroy_node()
+        for collector in collectors:
+            collector.node.destroy_node()
+    for topic in TOPICS[:2]:
+        got = np.array([stamp for stamp, _ in collectors[-1].received[topic]])
+        np.testing.assert_array_equal(got, stamps)
+
+
 def test_publish_clock(ros_context, spin_until, small_bag):
     path, stamps, _ = small_bag
     _, collector = run(
