@@ -151,6 +151,13 @@ class Effect:
         """Per-sample factor s(t) on both time constants, shape (N,), or None."""
         return None
 
+    def log_factor_jacobian(self, context: FitContext) -> dict[str, NDArray[np.float64]]:
+        """``∂ log s(t)/∂θ``, shape (N,), of parameters acting only through :meth:`tau_factor`.
+
+        By name; none by default. The fit's Jacobian needs no evaluation for them.
+        """
+        return {}
+
     def radiation(
         self, sensor: int, params: Mapping[str, float], context: FitContext
     ) -> tuple[float, float] | None:

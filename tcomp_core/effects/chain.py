@@ -120,13 +120,15 @@ def _steady_filter(
     values: NDArray[np.float64],
     excess: float = 0.0,
 ) -> NDArray[np.float64]:
-    """``lfilter`` started in the steady state of its first input, its output ``excess`` off.
+    """``lfilter`` of a first-order section started in its first input's steady state.
 
-    For a first-order section the state is the output's offset, so ``excess`` is added to the
-    first output and then decays with the filter's pole.
+    ``a[0]`` must be 1. The output starts ``excess`` off that steady state: the state is the
+    output's offset, so ``excess`` is added to the first output and then decays with the
+    filter's pole. The steady state is :func:`scipy.signal.lfilter_zi`'s,
+    (b1 − a1 b0)/(1 + a1), in closed form (the diagnosis calls this for every candidate).
     """
-    zi = signal.lfilter_zi(b, a) * values[0] + excess
-    return signal.lfilter(b, a, values, zi=zi)[0]
+    zi = (b[1] - a[1] * b[0]) / (1.0 + a[1]) * values[0] + excess
+    return signal.lfilter(b, a, values, zi=np.array([zi]))[0]
 
 
 #: Half length of the fractional-delay interpolator (taps: 2 × this).
@@ -178,8 +180,9 @@ def fractional_shift(values: NDArray[np.float64], shift: float) -> tuple[NDArray
     lo = max(0, -first_offset)
     hi = min(m, m - (whole + SHIFT_HALF_TAPS))
     if hi > lo:
-        k = np.arange(lo, hi)
-        shifted[lo:hi] = sum(w * values[k + first_offset + j] for j, w in enumerate(weights))
+        # correlate's output i is sum_j w_j values[i + j]: output k is its i = k + first_offset.
+        stencil = np.correlate(values, weights, mode="valid")
+        shifted[lo:hi] = stencil[lo + first_offset : hi + first_offset]
     return shifted, weights
 
 
@@ -231,14 +234,20 @@ def gas_from_reading(
     true = (reading - chain.offset) / chain.gain
     filters = chain.support_filters(dt)
     lagged = true if filters is None else _steady_filter(*filters[0], true, chain.mode0)
-    a = chain.poles(reading.size, dt)
+    # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
+    a: NDArray[np.float64] | float = (
+        chain.poles(reading.size, dt)
+        if chain.factor is not None
+        else math.exp(-dt * (1.0 + chain.kappa) / chain.tau)
+    )
     scale = 1.0 + chain.kappa
-    gas = scale * (lagged[1:] - a * lagged[:-1]) / (1.0 - a)
+    gas = (lagged[1:] - a * lagged[:-1]) * (scale / (1.0 - a))
     tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
     if chain.r:
         kelvin = scale * lagged[:-1] + KELVIN
-        gas = gas + chain.r * (kelvin**4 - chain.wall_k**4)
-        tap = a - 4.0 * chain.r * kelvin**3 * (1.0 - a) / scale
+        cube = kelvin * kelvin * kelvin  # products: ndarray ** 3 and ** 4 go through pow
+        gas = gas + chain.r * (cube * kelvin - chain.wall_k**4)
+        tap = a - (4.0 * chain.r * (1.0 - a) / scale) * cube
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
     # The noise of u[k] is (scale/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation
@@ -248,7 +257,7 @@ def gas_from_reading(
         weights = np.convolve(weights, noise_kernel)
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
     noise_gain = (scale / chain.gain) ** 2 * energy / (1.0 - a) ** 2
-    return gas, noise_gain
+    return gas, np.broadcast_to(noise_gain, gas.shape)
 
 
 def reading_from_gas(

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +29,7 @@ from .base import Effect, FitContext, ParamSpec
 from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
 from .registry import EFFECTS, check_effect_names
 
-__all__ = ["Model", "make_context"]
+__all__ = ["LeastSquaresProblem", "Model", "make_context"]
 
 #: Evaluations allowed to each start of a multi-start search before the best is polished.
 _SCOUT_EVALUATIONS = 30
@@ -79,6 +79,139 @@ def make_context(
         tau_scale_s=tau_scale_s or 20.0 * dt,
         sigma2=sigma2,
     )
+
+
+class _ChainMemo:
+    """The last few inverse-chain results of each sensor, within one fit.
+
+    A finite-difference Jacobian moves one parameter at a time and most parameters belong to
+    one sensor's chain (τ1 to sensor 1, a calibration or delay to sensor 2), so the other
+    sensor's gas is the one just computed: it is looked up instead of filtered again. Chains
+    match when every scalar field is equal and they hold the very same ``factor`` array (the
+    velocity effect returns one array per set of coefficients); the memo keeps the chains it
+    stores alive, so an identity cannot be reused by another array while it is compared.
+    """
+
+    SIZE = 3
+
+    def __init__(self) -> None:
+        self._entries: dict[int, list[tuple[SensorChain, tuple]]] = {1: [], 2: []}
+
+    @staticmethod
+    def _same(a: SensorChain, b: SensorChain) -> bool:
+        return all(
+            getattr(a, f.name) is getattr(b, f.name)
+            if f.name == "factor"
+            else getattr(a, f.name) == getattr(b, f.name)
+            for f in fields(SensorChain)
+        )
+
+    def gas(
+        self,
+        sensor: int,
+        chain: SensorChain,
+        reading: NDArray[np.float64],
+        context: FitContext,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """:func:`gas_from_reading` of ``chain``, from the memo when it was just computed."""
+        entries = self._entries[sensor]
+        for stored, value in entries:
+            if self._same(stored, chain):
+                return value
+        value = gas_from_reading(chain, reading, context.dt, context.noise_kernel)
+        entries.insert(0, (chain, value))
+        del entries[self.SIZE :]
+        return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class LeastSquaresProblem:
+    """A model's fit criterion for :func:`scipy.optimize.least_squares`.
+
+    Attributes
+    ----------
+    specs : tuple of ParamSpec
+        The searched parameters, in the order of the search vector x.
+    lower, upper : ndarray, shape (P,)
+        Bounds of x (log of the bound for the time constants).
+    n_rows : int
+        Number of data residuals; penalty residuals follow them.
+    unpack : callable
+        x → parameter dict (fixed and setting values included).
+    residuals : callable
+        x → residual vector, shape (n_rows + penalties,).
+    jacobian : callable
+        x → its Jacobian, shape (n_rows + penalties, P) (see :class:`_Jacobian`).
+    """
+
+    specs: tuple[ParamSpec, ...]
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+    n_rows: int
+    unpack: Callable[[NDArray[np.float64]], dict[str, float]]
+    residuals: Callable[..., NDArray[np.float64]]
+    jacobian: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+
+class _Jacobian:
+    """Forward-difference Jacobian of the fit's residuals, with a shortcut for s(t).
+
+    Each column is (r(x + h e_i) − r(x))/h with scipy's 2-point step h = ±√ε max(1, |x_i|);
+    the chain memo makes a column that moves one sensor's parameter cost one chain.
+    Parameters that act only through the time-constant factor s(t) (velocity) need no
+    evaluation: s(t_k) enters residual k only through both poles of interval k, exactly as
+    log τ1 and log τ2 do together, so ∂r_k/∂log s_k is the sum of the log τ1 and log τ2
+    columns, and the chain rule gives ∂r_k/∂θ = (∂r_k/∂log s_k)(∂log s_k/∂θ).
+    Penalty rows (after the first ``n_rows``) are differenced in the usual way.
+    """
+
+    def __init__(
+        self,
+        residuals,
+        lower: NDArray[np.float64],
+        upper: NDArray[np.float64],
+        n_rows: int,
+        names: Sequence[str],
+        log_factor_columns: Mapping[int, NDArray[np.float64]],
+    ) -> None:
+        self.residuals = residuals
+        self.lower, self.upper = lower, upper
+        self.n_rows = n_rows
+        self.local = dict(log_factor_columns) if {"tau1", "tau2"} <= set(names) else {}
+        self.taus: tuple[int, int] = (
+            (list(names).index("tau1"), list(names).index("tau2")) if self.local else (0, 1)
+        )
+
+    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        base = self.residuals(x)
+        jac = np.empty((base.size, x.size))
+        differenced = [i for i in range(x.size) if i not in self.local]
+        for i in differenced:
+            jac[:, i] = self._column(x, i, base)
+        if self.local:
+            per_sample = jac[: self.n_rows, self.taus[0]] + jac[: self.n_rows, self.taus[1]]
+            for i, column in self.local.items():
+                jac[: self.n_rows, i] = per_sample * column
+                if base.size > self.n_rows:
+                    jac[self.n_rows :, i] = self._column(x, i, base, penalty_only=True)
+        return jac
+
+    def _column(
+        self, x: NDArray[np.float64], i: int, base: NDArray[np.float64], penalty_only=False
+    ) -> NDArray[np.float64]:
+        # scipy's 2-point step: towards the sign of x_i, turned back at a bound.
+        step = _EPS_SQRT * (1.0 if x[i] >= 0 else -1.0) * max(1.0, abs(float(x[i])))
+        if not self.lower[i] <= x[i] + step <= self.upper[i]:
+            step = -step
+        moved = x.copy()
+        moved[i] += step
+        step = float(moved[i] - x[i])  # the step x actually took, in floating point
+        if penalty_only:
+            return (self.residuals(moved, penalty_only=True) - base[self.n_rows :]) / step
+        return (self.residuals(moved) - base) / step
+
+
+_EPS_SQRT = math.sqrt(np.finfo(float).eps)
 
 
 def _effect(name: str) -> Effect:
@@ -200,12 +333,17 @@ class Model:
         tc2: NDArray[np.float64],
         context: FitContext,
         params: Mapping[str, float] | None = None,
+        memo: _ChainMemo | None = None,
     ) -> NDArray[np.float64]:
-        """Normalised cross-relation residual (u1 − u2)/(σ2 sqrt(φ g1 + g2)), shape (N - 1,)."""
+        """Normalised cross-relation residual (u1 − u2)/(σ2 sqrt(φ g1 + g2)), shape (N - 1,).
+
+        ``memo`` (inside a fit, for fixed readings) reuses a chain's gas computed just before.
+        """
         params = self.params if params is None else params
         first, second = self.chains(context, params)
-        gas1, gain1 = gas_from_reading(first, tc1, context.dt, context.noise_kernel)
-        gas2, gain2 = gas_from_reading(second, tc2, context.dt, context.noise_kernel)
+        memo = _ChainMemo() if memo is None else memo
+        gas1, gain1 = memo.gas(1, first, tc1, context)
+        gas2, gain2 = memo.gas(2, second, tc2, context)
         phi = Model(self.effects, params).phi
         return (gas1 - gas2) / (context.sigma2 * np.sqrt(phi * gain1 + gain2))
 
@@ -266,6 +404,52 @@ class Model:
         """
         if "tau1" not in self.params or "tau2" not in self.params:
             raise EstimationError("the model needs starting values of tau1 and tau2")
+        problem = self.problem(tc1, tc2, context, rows)
+        specs, lower, upper = problem.specs, problem.lower, problem.upper
+        residuals, jacobian, unpack = problem.residuals, problem.jacobian, problem.unpack
+        starts = self._starts(context, specs, lower, upper, tc1, tc2)
+        # tr_solver="lsmr": the exact trust-region solver takes an SVD of the whole N × P
+        # Jacobian every step (N ~ 20 000 rows: 40 % of a diagnosis); with P ≲ 20 LSMR solves
+        # the same subproblem in a few products with J.
+        if len(starts) > 1:
+            scouted = [
+                least_squares(
+                    residuals,
+                    x0,
+                    jac=jacobian,
+                    bounds=(lower, upper),
+                    max_nfev=_SCOUT_EVALUATIONS,
+                    tr_solver="lsmr",
+                )
+                for x0 in starts
+            ]
+            x0 = min(scouted, key=lambda result: result.cost).x
+        else:
+            x0 = starts[0]
+        result = least_squares(
+            residuals, x0, jac=jacobian, bounds=(lower, upper), x_scale="jac", tr_solver="lsmr"
+        )
+        if not np.isfinite(result.cost):
+            raise EstimationError(f"the fit of {self.effects or 'the base model'} diverged")
+        return Model(self.effects, unpack(result.x))
+
+    def problem(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        context: FitContext,
+        rows: NDArray[np.bool_] | None = None,
+    ) -> LeastSquaresProblem:
+        """The fit's criterion as a least-squares problem in the search coordinates.
+
+        Parameters are as :meth:`fit`'s; the time constants (every ``tau*``) are searched as
+        their logarithms.
+
+        Raises
+        ------
+        EstimationError
+            If too few rows are usable for the parameters.
+        """
         specs = self.specs(context)
         rows = np.ones(tc1.size - 1, dtype=bool) if rows is None else rows
         rows = rows & self._valid_rows(tc1.size, context)
@@ -285,9 +469,14 @@ class Model:
                 values[spec.name] = math.exp(value) if spec.name.startswith("tau") else value
             return values
 
-        def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        memo = _ChainMemo()
+
+        def residuals(x: NDArray[np.float64], penalty_only: bool = False) -> NDArray[np.float64]:
             values = unpack(x)
-            r = self.cross_residual(tc1, tc2, context, values)[rows]
+            if penalty_only:
+                penalties = [effect.penalty(values, n_rows) for effect in self.instances]
+                return np.concatenate(penalties) if penalties else np.empty(0)
+            r = self.cross_residual(tc1, tc2, context, values, memo)[rows]
             r = np.where(np.isfinite(r), r, 1e6)
             extra = [effect.penalty(values, n_rows) for effect in self.instances]
             return np.concatenate([r, *extra]) if extra else r
@@ -298,19 +487,34 @@ class Model:
         upper = np.array(
             [math.log(s.upper) if s.name.startswith("tau") else s.upper for s in specs]
         )
-        starts = self._starts(context, specs, lower, upper, tc1, tc2)
-        if len(starts) > 1:
-            scouted = [
-                least_squares(residuals, x0, bounds=(lower, upper), max_nfev=_SCOUT_EVALUATIONS)
-                for x0 in starts
-            ]
-            x0 = min(scouted, key=lambda result: result.cost).x
-        else:
-            x0 = starts[0]
-        result = least_squares(residuals, x0, bounds=(lower, upper), x_scale="jac")
-        if not np.isfinite(result.cost):
-            raise EstimationError(f"the fit of {self.effects or 'the base model'} diverged")
-        return Model(self.effects, unpack(result.x))
+        jacobian = _Jacobian(
+            residuals,
+            lower,
+            upper,
+            n_rows,
+            [spec.name for spec in specs],
+            self._log_factor_columns(context, specs, rows),
+        )
+        return LeastSquaresProblem(
+            specs=tuple(specs),
+            lower=lower,
+            upper=upper,
+            n_rows=n_rows,
+            unpack=unpack,
+            residuals=residuals,
+            jacobian=jacobian,
+        )
+
+    def _log_factor_columns(
+        self, context: FitContext, specs: Sequence[ParamSpec], rows: NDArray[np.bool_]
+    ) -> dict[int, NDArray[np.float64]]:
+        """∂ log s/∂θ on the fitted rows for parameters that act only through s(t), by index."""
+        columns: dict[int, NDArray[np.float64]] = {}
+        index = {spec.name: i for i, spec in enumerate(specs)}
+        for effect in self.instances:
+            for name, column in effect.log_factor_jacobian(context).items():
+                columns[index[name]] = column[:-1][rows]  # interval k uses s(t_k)
+        return columns
 
     def _valid_rows(self, n: int, context: FitContext) -> NDArray[np.bool_]:
         """Intervals every parameter value can use (delays shift data off the ends)."""

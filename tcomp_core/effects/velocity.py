@@ -46,6 +46,7 @@ class Velocity(Effect):
 
     def __init__(self) -> None:
         self._cache: tuple[int, float, NDArray[np.float64]] | None = None
+        self._factor: tuple[tuple[float, ...], NDArray[np.float64]] | None = None
 
     def _design(self, context: FitContext) -> NDArray[np.float64]:
         key = (context.time.size, context.knot_spacing_s)
@@ -121,8 +122,21 @@ class Velocity(Effect):
         return np.array([0.0, *(params[name] for name in names)])
 
     def tau_factor(self, context: FitContext, params: Mapping[str, float]) -> NDArray[np.float64]:
-        log_s = self._design(context) @ self._coefficients(params)
-        return np.exp(log_s - log_s.mean())
+        # The same array for the same coefficients: a fit's chain memo matches chains by it.
+        coefficients = self._coefficients(params)
+        key = (context.time.size, context.knot_spacing_s, *coefficients.tolist())
+        if self._factor is None or self._factor[0] != key:
+            log_s = self._design(context) @ coefficients
+            factor = np.exp(log_s - log_s.mean())
+            factor.flags.writeable = False
+            self._factor = (key, factor)
+        return self._factor[1]
+
+    def log_factor_jacobian(self, context: FitContext) -> dict[str, NDArray[np.float64]]:
+        # log s = B c − mean(B c), c0 = 0: linear in the coefficients.
+        design = self._design(context)
+        centred = design[:, 1:] - design[:, 1:].mean(axis=0)
+        return {f"velocity_{j}": centred[:, j - 1] for j in range(1, design.shape[1])}
 
     def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
         coefficients = self._coefficients(params)
