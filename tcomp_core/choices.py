@@ -82,7 +82,9 @@ RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
 
 #: The effect names used everywhere (API, CLI, JSON, diagnostics), in the order reports list
 #: them.
-EffectName = Literal["conduction", "radiation", "velocity", "delay", "calibration", "noise_ratio"]
+EffectName = Literal[
+    "conduction", "radiation", "velocity", "property", "delay", "calibration", "noise_ratio"
+]
 EFFECT_NAMES: tuple[str, ...] = get_args(EffectName)
 
 #: Topics of tc1, tc2 and the optional reference in a bag.

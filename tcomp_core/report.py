@@ -295,6 +295,27 @@ def _summary(diagnosis: Diagnosis) -> str:
         "<p>Where the base model fails:</p>",
         _list(d.failure.findings),
         f"<p>{escape(_winner_text(d))}</p>",
+        f"<p><b>Unexplained:</b> {escape(d.unexplained)}</p>" if d.unexplained else "",
+        _intervals(d.final),
+    )
+
+
+def _intervals(fit: ModelFit) -> str:
+    """The final model's parameters with their 95 % intervals and bound flags."""
+    if not fit.intervals:
+        return ""
+    rows = [
+        [
+            name,
+            fit.params[name],
+            low,
+            high,
+            "at its physical bound" if name in fit.at_bound else "",
+        ]
+        for name, (low, high) in fit.intervals.items()
+    ]
+    return "<p>Final model parameters:</p>" + _table(
+        ["parameter", "value", "95 % low", "95 % high", ""], rows
     )
 
 

@@ -10,7 +10,8 @@ temperature evaluated on that grid, and then point-sampled:
   ``noise_ratio``) are solved exactly for the gas interpolated linearly between grid points,
   which is what :func:`scipy.signal.lsim` computes; the first-order-hold discretisation is
   applied with :func:`scipy.signal.lfilter`, as ``lsim`` steps in a Python loop;
-* ``radiation`` (nonlinear) and ``velocity`` (time-varying) are integrated with classical RK4
+* ``radiation``, ``property`` (nonlinear) and ``velocity`` (time-varying) are integrated with
+  classical RK4
   in steps of two grid intervals, the gas at the odd grid points being the exact midpoint
   values; an odd ``oversample`` is rounded up to even for them.
 
@@ -23,6 +24,7 @@ effect         sensor i (τi dTi/dt = Tg − Ti unless stated)
 conduction     Gi(s) = [1 + κi/(1 + τp s)] / (1 + κi + τi s): slow mode τp, unity DC gain
 radiation      τi dTi/dt = Tg − Ti − ri (Ti⁴ − Tw⁴), temperatures in kelvin in the law
 velocity       τi(t) = τi0 (v(t)/v0)^(−m),  v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)
+property       τi(t) = τi0 (Tf/T̄)^exponent, film Tf = (Ti + Tg)/2 and the gas mean T̄ in K
 delay          junction 2 sees the gas δ = delay_s later than junction 1
 calibration    tc2 reads gain · T2 + offset_c
 noise_ratio    σ2 = sigma_ratio · σ1, so φ = σ1²/σ2² = 1/sigma_ratio²
@@ -77,7 +79,11 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "gain": (0.0, np.inf, False),
     "offset_c": (-np.inf, np.inf, False),
     "sigma_ratio": (0.0, np.inf, False),
+    "exponent": (-np.inf, np.inf, False),
 }
+#: Exponent of τ ∝ T^p for ``property``: strong (fine wires in air have |p| ≲ 0.3), so that
+#: 10 s of hot gas show it at K = 1–2 %.
+PROPERTY_EXPONENT = -0.6
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -153,6 +159,7 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
         ``radiation``: r1, r2 (K⁻³), wall_c (degrees C); 4 r1 T̄³ = 0.08 at T̄ = 700 °C and
         r2 = r1 (τ2/τ1)^(1/3), as a thicker wire radiates relatively more.
         ``velocity``: m (dimensionless), depth (dimensionless), period_s (s).
+        ``property``: exponent p of τ ∝ T^p (dimensionless, T in kelvin).
         ``delay``: delay_s (s). ``calibration``: gain (dimensionless), offset_c (degrees C).
         ``noise_ratio``: sigma_ratio = σ2/σ1 (dimensionless).
     """
@@ -168,6 +175,8 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
         return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": 300.0}
     if effect == "velocity":
         return {"m": 0.6, "depth": 0.4, "period_s": 6.0}
+    if effect == "property":
+        return {"exponent": PROPERTY_EXPONENT}
     if effect == "delay":
         return {"delay_s": 0.008}
     if effect == "calibration":
@@ -208,7 +217,7 @@ def _effect_params(
 def _gas_params(effect: str | None, signal_params: Mapping[str, float] | None) -> dict[str, float]:
     """Gas signal parameters; hot gas for ``radiation`` unless the caller chose the level."""
     params = dict(signal_params or {})
-    if effect == "radiation":
+    if effect in ("radiation", "property"):
         params.setdefault("mean", RADIATION_MEAN_C)
         params.setdefault("amplitude", RADIATION_AMPLITUDE_C)
     return params
@@ -317,6 +326,37 @@ def _radiation_response(
     return np.array(out)
 
 
+def _level_response(
+    gas_k: NDArray[np.float64], tau: float, exponent: float, ref_k: float, step: float, stride: int
+) -> NDArray[np.float64]:
+    """RK4 solution of τ (T_f/T_ref)^p dT/dt = Tg − T, temperatures in K, from equilibrium.
+
+    T_f = (T + Tg)/2 is the film temperature at which the gas properties are taken.
+
+    The grid is laid out as in :func:`_radiation_response`; returns the sensor temperature in
+    K every ``stride`` steps.
+    """
+    gas = gas_k.tolist()
+    half, film_ref = 0.5 * step, 2.0 * ref_k
+    temp = gas[0]
+    out = [temp]
+    i = 0
+    for _ in range((len(gas) - 1) // (2 * stride)):
+        for _ in range(stride):
+            g0, gm, g1 = gas[i], gas[i + 1], gas[i + 2]
+            i += 2
+            k1 = (g0 - temp) / (tau * ((temp + g0) / film_ref) ** exponent)
+            y = temp + half * k1
+            k2 = (gm - y) / (tau * ((y + gm) / film_ref) ** exponent)
+            y = temp + half * k2
+            k3 = (gm - y) / (tau * ((y + gm) / film_ref) ** exponent)
+            y = temp + step * k3
+            k4 = (g1 - y) / (tau * ((y + g1) / film_ref) ** exponent)
+            temp += step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        out.append(temp)
+    return np.array(out)
+
+
 def _velocity_factor(
     t: NDArray[np.float64], m: float, depth: float, period_s: float
 ) -> NDArray[np.float64]:
@@ -406,7 +446,7 @@ def _simulate_clean(
     oversample: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Gas and the two noise-free readings at the ``n`` sample instants, degrees C."""
-    if effect in ("radiation", "velocity"):
+    if effect in ("radiation", "velocity", "property"):
         stride = (oversample + 1) // 2
         t = _fine_time(n, dt, 2 * stride)
         gas = gas_signal(kind, t, **gas_params)
@@ -416,6 +456,13 @@ def _simulate_clean(
             clean = [
                 _radiation_response(gas + KELVIN, tau, params[r], wall_k, step, stride) - KELVIN
                 for tau, r in zip(taus, ("r1", "r2"), strict=True)
+            ]
+        elif effect == "property":
+            ref_k = float(np.mean(gas)) + KELVIN
+            clean = [
+                _level_response(gas + KELVIN, tau, params["exponent"], ref_k, step, stride)
+                - KELVIN
+                for tau in taus
             ]
         else:
             factor = _velocity_factor(t, params["m"], params["depth"], params["period_s"])

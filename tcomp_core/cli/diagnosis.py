@@ -83,6 +83,13 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
         f"final: effects {', '.join(final.effects) or 'none'}; tau1 = {final.tau1:.5g} s, "
         f"tau2 = {final.tau2:.5g} s, held-out error {final.error_pct:.3g} %"
     )
+    for name, (low, high) in final.intervals.items():
+        flag = "  (at its physical bound)" if name in final.at_bound else ""
+        lines.append(
+            f"  {name} = {final.params[name]:.5g}, 95 % interval {low:.5g} .. {high:.5g}{flag}"
+        )
+    if diagnosis.unexplained:
+        lines.append(f"unexplained: {diagnosis.unexplained}")
     for name, value in diagnosis.ref_error_pct.items():
         lines.append(f"reference vs {name}: {value:.3g} % of its spread")
     lines.extend(f"note: {note}" for note in diagnosis.notes)

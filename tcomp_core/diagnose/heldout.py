@@ -32,6 +32,7 @@ from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
 from .prepare import PreparedData
 from .result import ModelFit
+from .uncertainty import parameter_uncertainty
 
 __all__ = ["Evaluator", "heldout_error_percent"]
 
@@ -173,6 +174,7 @@ class Evaluator:
         parameters; the errors remain those of the held-out test.
         """
         model = Model(fit.effects, fit.params).fit(*self._fit_inputs)
+        intervals, at_bound = parameter_uncertainty(model, *self._fit_inputs)
         readings = self.readings
         fast = 3 - self.slow
         measured = readings[self.slow - 1]
@@ -186,6 +188,8 @@ class Evaluator:
             predicted=predicted,
             gas1=_pad(gas1),
             gas2=_pad(gas2),
+            intervals=intervals,
+            at_bound=at_bound,
         )
 
     def scored_mask(self, model: Model) -> NDArray[np.bool_]:
@@ -222,6 +226,9 @@ class Evaluator:
             )
         noise = self.noise_variance(model)
         gas1, gas2 = model.reconstruct(*readings, self.context)
+        intervals, at_bound = parameter_uncertainty(
+            model, *self._fit_inputs, self.data.training_rows
+        )
         return ModelFit(
             effects=model.effects,
             params=dict(model.params),
@@ -238,4 +245,6 @@ class Evaluator:
             gas1=_pad(gas1),
             gas2=_pad(gas2),
             n_params=model.n_params(self.context),
+            intervals=intervals,
+            at_bound=at_bound,
         )

@@ -25,9 +25,10 @@ from ..estimators.scatter import beta_scatter
 from ..io import Record
 from .heldout import Evaluator, heldout_error_percent
 from .prepare import PreparedData, block_length_s, prepare
-from .ranking import MAX_EFFECTS, fit_with_effect, next_round, pick
+from .ranking import MAX_EFFECTS, fit_with_effect, is_expected_physics, next_round, pick
 from .residuals import FailureAnalysis, analyse_failure
 from .result import Diagnosis, ModelFit, Suspect
+from .unexplained import describe_unexplained, is_unexplained
 
 __all__ = ["diagnose", "fit_effects"]
 
@@ -72,6 +73,7 @@ def _evaluator(data: PreparedData, taus: dict[str, float]) -> Evaluator:
         knot_spacing_s=block_length_s(data.time[-1] + data.dt, data.dt),
         tau_scale_s=max(taus.values()),
         sigma2=max(data.noise2.sigma / np.sqrt(data.decimation), 1e-9 * (1.0 + np.std(data.tc2))),
+        base_taus_s=(taus["tau1"], taus["tau2"]),
     )
     nyquist = 0.5 / data.dt
     duration = data.time[-1] + data.dt
@@ -158,24 +160,35 @@ def _staircase(
     fit: ModelFit,
     candidates: Sequence[str],
     max_effects: int,
-) -> tuple[list[ModelFit], list[list[Suspect]]]:
-    steps, rounds = [fit], []
+) -> tuple[list[ModelFit], list[list[Suspect]], list[str]]:
+    """The error staircase, the rounds of suspects, and the effects added as expected physics."""
+    steps: list[ModelFit] = [fit]
+    rounds: list[list[Suspect]] = []
+    expected: list[str] = []
     remaining = [name for name in candidates if name not in model.effects]
-    while remaining and len(steps) <= max_effects:
+    while remaining and len(steps) <= max_effects + len(expected):
         suspects = next_round(evaluator, model, fit, remaining)
         rounds.append(suspects)
         chosen = pick(suspects)
         if chosen is None or chosen.fit is None:
             break
+        if is_expected_physics(chosen, evaluator):
+            expected.append(chosen.effect)
         fit = chosen.fit
         model = Model(fit.effects, fit.params)
         steps.append(fit)
         remaining.remove(chosen.effect)
-    return steps, rounds
+    return steps, rounds, expected
 
 
-def _diagnosis(evaluator, base, failure, steps, rounds, verdict) -> Diagnosis:
+def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) -> Diagnosis:
     data = evaluator.data
+    notes = _notes(data, evaluator)
+    for name in expected:
+        notes.append(
+            f"{name}: added as the sensors' ordinary physics, not a finding (time constants "
+            "vary a little with the level through the gas properties, as for any real wire)"
+        )
     return Diagnosis(
         source=data.source,
         time=data.time,
@@ -197,7 +210,9 @@ def _diagnosis(evaluator, base, failure, steps, rounds, verdict) -> Diagnosis:
         verdict=verdict,
         final=steps[-1],
         ref_error_pct=_reference_errors(evaluator, steps[-1]),
-        notes=_notes(data, evaluator),
+        notes=notes,
+        unexplained=describe_unexplained(evaluator, steps[-1]),
+        expected_physics=list(expected),
     )
 
 
@@ -241,10 +256,13 @@ def diagnose(
     """
     candidates = check_effect_names(candidates)
     evaluator, model, base, failure = _base_fit(record)
-    steps, rounds = _staircase(evaluator, model, base, candidates, max_effects)
+    steps, rounds, expected = _staircase(evaluator, model, base, candidates, max_effects)
     steps[-1] = evaluator.refit_whole(steps[-1])
-    verdict = steps[1].effects[0] if len(steps) > 1 else "none"
-    return _diagnosis(evaluator, steps[0], failure, steps, rounds, verdict)
+    findings = [effect for effect in steps[-1].effects if effect not in expected]
+    verdict = findings[0] if findings else "none"
+    if verdict == "none" and is_unexplained(steps[-1]):
+        verdict = "unexplained"
+    return _diagnosis(evaluator, steps[0], failure, steps, rounds, verdict, expected)
 
 
 def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:

@@ -47,6 +47,12 @@ class ModelFit:
         Gas temperature reconstructed from thermocouple 1 and from thermocouple 2, degrees C.
     n_params : int
         Number of fitted parameters.
+    intervals : dict of str to (float, float)
+        95 % confidence interval of every searched parameter, in its unit
+        (:mod:`tcomp_core.diagnose.uncertainty`).
+    at_bound : tuple of str
+        Parameters the fit left on a bound of their physical range: the fit wanted more than
+        physics allows, so the effect is not significant.
     """
 
     effects: tuple[str, ...]
@@ -62,6 +68,8 @@ class ModelFit:
     gas1: NDArray[np.float64]
     gas2: NDArray[np.float64]
     n_params: int
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
+    at_bound: tuple[str, ...] = ()
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: effects, tau1, tau2, error_pct and the parameters."""
@@ -74,6 +82,10 @@ class ModelFit:
             "noise_floor_pct": _finite(self.noise_floor_pct),
             "train_error_pct": _finite(self.train_error_pct),
             "params": {name: float(value) for name, value in self.params.items()},
+            "intervals_95": {
+                name: [_finite(low), _finite(high)] for name, (low, high) in self.intervals.items()
+            },
+            "at_bound": list(self.at_bound),
         }
 
 
@@ -163,6 +175,13 @@ class Diagnosis:
         model (``"gas1"``, ``"gas2"``, ``"fused"``) in % of the reference's spread.
     notes : list of str
         Caveats found on the way (narrow-band excitation, decimation, ...).
+    unexplained : str
+        When the final model stays well above the noise floor, what its residual shows, in
+        words (:mod:`tcomp_core.diagnose.unexplained`); ``""`` otherwise. The verdict is
+        ``"unexplained"`` when no effect was found at all.
+    expected_physics : list of str
+        Effects added to the model as the sensors' ordinary physics, not findings (a ``property``
+        of ordinary size: :func:`tcomp_core.diagnose.ranking.is_expected_physics`).
     """
 
     source: str
@@ -186,6 +205,8 @@ class Diagnosis:
     final: ModelFit
     ref_error_pct: dict[str, float] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    unexplained: str = ""
+    expected_physics: list[str] = field(default_factory=list)
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
@@ -193,9 +214,10 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
 
     Keys: ``source``, ``samples``, ``dt``, ``slow``, ``error_definition``, ``noise``,
     ``base`` {tau1, tau2, error_pct, ...}, ``where`` (findings and statistics), ``suspects``
-    (best first) [{effect, error_pct, evidence, signature, significant}], ``verdict`` (an effect
-    or ``"none"``), ``final`` {effects, tau1, tau2, error_pct, ...}, ``steps`` (the error
-    staircase), ``rounds``, ``ref_error_pct``, ``notes``.
+    (best first) [{effect, error_pct, evidence, signature, significant}], ``verdict`` (an effect,
+    ``"none"`` or ``"unexplained"``), ``final`` {effects, tau1, tau2, error_pct, intervals_95,
+    at_bound, ...}, ``steps`` (the error staircase), ``rounds``, ``ref_error_pct``, ``notes``,
+    ``unexplained`` (the residual's signature in words, or ""), ``expected_physics``.
     """
     return {
         "source": diagnosis.source,
@@ -219,4 +241,6 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
         "rounds": [[suspect.summary() for suspect in round_] for round_ in diagnosis.rounds],
         "ref_error_pct": dict(diagnosis.ref_error_pct),
         "notes": list(diagnosis.notes),
+        "unexplained": diagnosis.unexplained,
+        "expected_physics": list(diagnosis.expected_physics),
     }

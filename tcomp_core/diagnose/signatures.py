@@ -5,6 +5,7 @@ Each effect leaves its own mark on the residual of the model it is missing from:
 * conduction: a slow residual, its power below the support mode's corner frequency;
 * radiation: a residual that curves with the temperature level (T⁴);
 * velocity: time constants that drift together over the record;
+* property: a residual that follows the rate of change in proportion to the level (τ ∝ T^p);
 * delay: a residual correlated with the rate of change of the input at a small lag;
 * calibration: a residual offset and a slope against the temperature level;
 * noise_ratio: unequal noise floors in the two spectra (φ ≠ 1).
@@ -21,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..effects import Model
+from ..effects.base import KELVIN
 from .heldout import Evaluator
 from .residuals import band_errors
 from .result import ModelFit
@@ -89,6 +91,22 @@ def _velocity(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     )
 
 
+def _property(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    residual, level, _ = _residual(evaluator, current)
+    # A τ error proportional to the level's excursion leaves (T − T̄) dT/dt in the residual.
+    marker = (level - level.mean()) * np.gradient(level)
+    correlation = float(np.corrcoef(residual, marker)[0, 1]) if marker.std() > 0 else 0.0
+    p = fit.params["property_exponent"]
+    kelvin = level + KELVIN
+    span = (kelvin.min() / kelvin.mean()) ** p, (kelvin.max() / kelvin.mean()) ** p
+    return (
+        "the residual follows the rate of change in proportion to the level "
+        f"(correlation {correlation:.2f}), the mark of time constants that change with the "
+        f"temperature; refit: tau ~ T^{p:.3g} (T in K), tau from {min(span):.3f} to "
+        f"{max(span):.3f} times its mean-level value over the record"
+    )
+
+
 def _delay(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     residual, _, fast = _residual(evaluator, current)
     rate = np.gradient(fast)
@@ -132,6 +150,7 @@ _SIGNATURES: dict[str, Callable[[Evaluator, ModelFit, ModelFit], str]] = {
     "conduction": _conduction,
     "radiation": _radiation,
     "velocity": _velocity,
+    "property": _property,
     "delay": _delay,
     "calibration": _calibration,
     "noise_ratio": _noise_ratio,

@@ -77,6 +77,9 @@ class FitContext:
     noise_kernel : ndarray or None
         Impulse response of the low-pass the readings were given through before the fit
         (None: raw readings); the fit's residual normalisation counts the noise it removes.
+    base_taus_s : tuple of float or None
+        τ1, τ2 of the first-order model, s: effects derive physical bounds from them (None:
+        unknown, the bounds are the widest).
     """
 
     dt: float
@@ -88,6 +91,7 @@ class FitContext:
     tau_scale_s: float
     sigma2: float = 1.0
     noise_kernel: NDArray[np.float64] | None = None
+    base_taus_s: tuple[float, float] | None = None
 
     @property
     def duration_s(self) -> float:
@@ -157,6 +161,10 @@ class Effect:
         By name; none by default. The fit's Jacobian needs no evaluation for them.
         """
         return {}
+
+    def level_exponent(self, params: Mapping[str, float]) -> float | None:
+        """Exponent p of τ ∝ (T/T̄)^p with the sensor's temperature T in kelvin, or None."""
+        return None
 
     def radiation(
         self, sensor: int, params: Mapping[str, float], context: FitContext

@@ -16,6 +16,9 @@ from .base import Effect, FitContext, ParamSpec
 
 __all__ = ["Calibration"]
 
+#: Largest relative gain error of one sensor against the other that counts as calibration.
+GAIN_LIMIT = 0.2
+
 
 class Calibration(Effect):
     """Gain (dimensionless) and offset (degrees C) of tc2 relative to tc1."""
@@ -24,13 +27,15 @@ class Calibration(Effect):
     summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
-        span = abs(context.level_mean_c) + 10.0 * context.level_std_c + 10.0
+        # Physical bounds: a thermocouple whose gain is off by more than GAIN_LIMIT is broken,
+        # not miscalibrated; the offset may be whatever that gain leaves at the level.
+        span = GAIN_LIMIT * abs(context.level_mean_c) + 10.0 * context.level_std_c + 10.0
         return (
             ParamSpec(
                 name="gain",
                 unit="1",
-                lower=0.5,
-                upper=2.0,
+                lower=1.0 - GAIN_LIMIT,
+                upper=1.0 + GAIN_LIMIT,
                 description="gain of tc2 relative to tc1",
             ),
             ParamSpec(

@@ -23,7 +23,7 @@ the interpolation of a delay), so a model simulated forward and inverted again r
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -60,6 +60,9 @@ class SensorChain:
         degrees C: a record that does not start at rest starts with the mode charged.
     factor : ndarray, shape (N,), or None
         Per-sample factor on τ (velocity), or None for a constant τ.
+    level_exponent, level_ref_k : float
+        τ scales as (T/T_ref)^level_exponent with the film temperature T in kelvin, halfway
+        between the junction and the gas (gas properties); 0 means none.
     r, wall_k : float
         Radiation coefficient (K⁻³) and wall temperature (K); ``r = 0`` means none.
     delay_s : float
@@ -76,13 +79,27 @@ class SensorChain:
     r: float = 0.0
     wall_k: float = 0.0
     delay_s: float = 0.0
+    level_exponent: float = 0.0
+    level_ref_k: float = 1.0
 
-    def poles(self, n: int, dt: float) -> NDArray[np.float64]:
-        """Discrete pole of every interval, shape (n - 1,)."""
+    def poles(
+        self, n: int, dt: float, kelvin: NDArray[np.float64] | None = None
+    ) -> NDArray[np.float64]:
+        """Discrete pole of every interval, shape (n - 1,).
+
+        ``kelvin`` (shape (n - 1,)), the film temperature of each interval in K, is needed
+        when τ depends on the level (``level_exponent``).
+        """
         tau = self.tau / (1.0 + self.kappa)
-        if self.factor is None:
-            return np.full(n - 1, math.exp(-dt / tau))
-        return np.exp(-dt / (tau * self.factor[:-1]))
+        scale = np.ones(n - 1) if self.factor is None else self.factor[:-1]
+        if self.level_exponent:
+            if kelvin is None:
+                raise ValueError("a level-dependent tau needs the sensor's temperature")
+            # The film temperature comes from a noisy gas estimate: held within a factor 2 of
+            # the mean level (in kelvin), where no real record's film strays.
+            ratio = np.clip(kelvin / self.level_ref_k, 0.5, 2.0)
+            scale = scale * ratio**self.level_exponent
+        return np.exp(-dt / (tau * scale))
 
     def support_filters(self, dt: float) -> tuple[FilterCoefficients, FilterCoefficients] | None:
         """Bilinear ``(b, a)`` of F and of F⁻¹ (conduction), or None."""
@@ -234,20 +251,20 @@ def gas_from_reading(
     true = (reading - chain.offset) / chain.gain
     filters = chain.support_filters(dt)
     lagged = true if filters is None else _steady_filter(*filters[0], true, chain.mode0)
+    scale = 1.0 + chain.kappa
+    junction_k = scale * lagged[:-1] + KELVIN
     # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
     a: NDArray[np.float64] | float = (
-        chain.poles(reading.size, dt)
+        replace(chain, level_exponent=0.0).poles(reading.size, dt)
         if chain.factor is not None
         else math.exp(-dt * (1.0 + chain.kappa) / chain.tau)
     )
-    scale = 1.0 + chain.kappa
-    gas = (lagged[1:] - a * lagged[:-1]) * (scale / (1.0 - a))
-    tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
-    if chain.r:
-        kelvin = scale * lagged[:-1] + KELVIN
-        cube = kelvin * kelvin * kelvin  # products: ndarray ** 3 and ** 4 go through pow
-        gas = gas + chain.r * (cube * kelvin - chain.wall_k**4)
-        tap = a - (4.0 * chain.r * (1.0 - a) / scale) * cube
+    gas, tap = _invert_lag(chain, lagged, a, junction_k)
+    for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
+        # τ follows the film temperature, halfway between the junction and the gas: the
+        # implicit inverse by fixed-point steps from the constant-τ gas.
+        a = chain.poles(reading.size, dt, 0.5 * (junction_k + gas + KELVIN))
+        gas, tap = _invert_lag(chain, lagged, a, junction_k)
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
     # The noise of u[k] is (scale/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation
@@ -258,6 +275,28 @@ def gas_from_reading(
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
     noise_gain = (scale / chain.gain) ** 2 * energy / (1.0 - a) ** 2
     return gas, np.broadcast_to(noise_gain, gas.shape)
+
+
+#: Fixed-point steps of the inverse with a level-dependent τ: each gains the factor p Δτ/τ
+#: (≲ 0.1), so three leave ~1e-3 of the τ change's own effect.
+LEVEL_ITERATIONS = 3
+
+
+def _invert_lag(
+    chain: SensorChain,
+    lagged: NDArray[np.float64],
+    a: NDArray[np.float64] | float,
+    junction_k: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
+    """Gas held over each interval from the lagged temperature, and the noise tap c."""
+    scale = 1.0 + chain.kappa
+    gas = (lagged[1:] - a * lagged[:-1]) * (scale / (1.0 - a))
+    tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
+    if chain.r:
+        cube = junction_k * junction_k * junction_k  # products: ** 3 and ** 4 go through pow
+        gas = gas + chain.r * (cube * junction_k - chain.wall_k**4)
+        tap = a - (4.0 * chain.r * (1.0 - a) / scale) * cube
+    return gas, tap
 
 
 def reading_from_gas(
@@ -283,16 +322,22 @@ def reading_from_gas(
     """
     seen = _fill_edges(gas)
     n = seen.size + 1
-    a = chain.poles(n, dt)
     scale = 1.0 + chain.kappa
     start = (initial_reading - chain.offset) / chain.gain / scale + chain.mode0
     drive = seen / scale
-    if chain.r == 0.0 and chain.factor is None:
+    if chain.level_exponent:
+        # τ follows the sensor's own temperature: the pole of each step from the state.
+        base = replace(chain, level_exponent=0.0).poles(n, dt)
+        level = (chain.level_exponent, chain.level_ref_k)
+        lagged = _lag_loop(drive, base, start, chain.r / scale, scale, chain.wall_k**4, level)
+    elif chain.r == 0.0 and chain.factor is None:
+        a = math.exp(-dt * (1.0 + chain.kappa) / chain.tau)
         lagged = np.concatenate(
-            ([start], signal.lfilter([1.0 - a[0]], [1.0, -a[0]], drive, zi=[a[0] * start])[0])
+            ([start], signal.lfilter([1.0 - a], [1.0, -a], drive, zi=[a * start])[0])
         )
     else:
-        lagged = _lag_loop(drive, a, start, chain.r / scale, scale, chain.wall_k**4)
+        a_k = chain.poles(n, dt)
+        lagged = _lag_loop(drive, a_k, start, chain.r / scale, scale, chain.wall_k**4)
     filters = chain.support_filters(dt)
     # F⁻¹ must return the initial reading from the charged mode: its output starts scale·mode0
     # below the steady state of lagged[0].
@@ -310,12 +355,23 @@ def _lag_loop(
     r_scaled: float,
     scale: float,
     wall4: float,
+    level: tuple[float, float] | None = None,
 ) -> NDArray[np.float64]:
-    """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r' ((s y[k] + K)^4 - T_w^4))."""
+    """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r' ((s y[k] + K)^4 - T_w^4)).
+
+    With ``level = (exponent, T_ref)`` the pole of step k is a_k^(1/(T/T_ref)^exponent) at the
+    film temperature T, halfway between the state's s y[k] + K and the gas s u[k] + K (τ
+    varying with the level), ``a`` then holding the poles without that factor.
+    """
     out = [start]
     y = start
     for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
-        loss = r_scaled * ((scale * y + KELVIN) ** 4 - wall4) if r_scaled else 0.0
+        kelvin = scale * y + KELVIN
+        if level is not None:  # τ at the film temperature, halfway to the gas
+            film = 0.5 * (kelvin + scale * u) + 0.5 * KELVIN
+            ratio = min(max(film / level[1], 0.5), 2.0)  # as in SensorChain.poles
+            pole = pole ** (1.0 / ratio ** level[0])
+        loss = r_scaled * (kelvin**4 - wall4) if r_scaled else 0.0
         y = pole * y + (1.0 - pole) * (u - loss)
         out.append(y)
     return np.asarray(out)

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from ..errors import EstimationError
-from .base import Effect, FitContext, ParamSpec
+from .base import KELVIN, Effect, FitContext, ParamSpec
 from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
 from .registry import EFFECTS, check_effect_names
 
@@ -45,6 +45,7 @@ def make_context(
     knot_spacing_s: float | None = None,
     tau_scale_s: float | None = None,
     sigma2: float = 1.0,
+    base_taus_s: tuple[float, float] | None = None,
 ) -> FitContext:
     """Build the :class:`FitContext` of a record.
 
@@ -65,6 +66,8 @@ def make_context(
         A rough time constant of the slower sensor; default 20 samples.
     sigma2 : float
         Noise standard deviation of thermocouple 2 at this sample rate, degrees C.
+    base_taus_s : tuple of float, optional
+        τ1, τ2 of the first-order model, s (for the effects' physical bounds).
     """
     time = np.asarray(time, dtype=np.float64) - float(time[0])
     both = np.concatenate((tc1, tc2))
@@ -78,6 +81,7 @@ def make_context(
         phi_hat=phi_hat,
         tau_scale_s=tau_scale_s or 20.0 * dt,
         sigma2=sigma2,
+        base_taus_s=base_taus_s,
     )
 
 
@@ -151,6 +155,15 @@ class LeastSquaresProblem:
     unpack: Callable[[NDArray[np.float64]], dict[str, float]]
     residuals: Callable[..., NDArray[np.float64]]
     jacobian: Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+    def pack(self, params: Mapping[str, float]) -> NDArray[np.float64]:
+        """Parameter dict → search vector x (the inverse of ``unpack``), shape (P,)."""
+        return np.array(
+            [
+                math.log(params[s.name]) if s.name.startswith("tau") else params[s.name]
+                for s in self.specs
+            ]
+        )
 
 
 class _Jacobian:
@@ -309,6 +322,13 @@ class Model:
                 factor = effect.tau_factor(context, params)
                 if factor is not None:
                     chain = replace(chain, factor=factor)
+                exponent = effect.level_exponent(params)
+                if exponent is not None:
+                    chain = replace(
+                        chain,
+                        level_exponent=exponent,
+                        level_ref_k=context.level_mean_c + KELVIN,
+                    )
                 radiation = effect.radiation(sensor, params, context)
                 if radiation is not None:
                     chain = replace(chain, r=radiation[0], wall_k=radiation[1])
@@ -405,9 +425,9 @@ class Model:
         if "tau1" not in self.params or "tau2" not in self.params:
             raise EstimationError("the model needs starting values of tau1 and tau2")
         problem = self.problem(tc1, tc2, context, rows)
-        specs, lower, upper = problem.specs, problem.lower, problem.upper
+        lower, upper = problem.lower, problem.upper
         residuals, jacobian, unpack = problem.residuals, problem.jacobian, problem.unpack
-        starts = self._starts(context, specs, lower, upper, tc1, tc2)
+        starts = self._starts(context, problem, tc1, tc2)
         # tr_solver="lsmr": the exact trust-region solver takes an SVD of the whole N × P
         # Jacobian every step (N ~ 20 000 rows: 40 % of a diagnosis); with P ≲ 20 LSMR solves
         # the same subproblem in a few products with J.
@@ -533,9 +553,7 @@ class Model:
     def _starts(
         self,
         context: FitContext,
-        specs: Sequence[ParamSpec],
-        lower: NDArray[np.float64],
-        upper: NDArray[np.float64],
+        problem: LeastSquaresProblem,
         tc1: NDArray[np.float64],
         tc2: NDArray[np.float64],
     ) -> list[NDArray[np.float64]]:
@@ -550,12 +568,8 @@ class Model:
             values = dict(self.params)
             for part in combination:
                 values.update(part)
-            x = np.array(
-                [
-                    math.log(values[s.name]) if s.name.startswith("tau") else values[s.name]
-                    for s in specs
-                ]
-            )
+            x = problem.pack(values)
+            lower, upper = problem.lower, problem.upper
             starts.append(
                 np.clip(x, lower + 1e-9 * (upper - lower), upper - 1e-9 * (upper - lower))
             )

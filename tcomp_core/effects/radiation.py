@@ -15,6 +15,7 @@ about one unit of the criterion for 0.03 of ρ, which informative data outweigh.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -22,10 +23,43 @@ from numpy.typing import NDArray
 
 from .base import KELVIN, Effect, FitContext, ParamSpec
 
-__all__ = ["Radiation"]
+__all__ = ["Radiation", "air_conductivity", "max_radiation_ratio"]
 
 #: Weight of the ρ2/ρ1 = (τ2/τ1)^⅓ prior, in units of the criterion per unit ρ.
 PRIOR_WEIGHT = 30.0
+#: Stefan–Boltzmann constant, W m⁻² K⁻⁴.
+STEFAN_BOLTZMANN = 5.670374419e-8
+#: Least volumetric heat capacity ρc of thermocouple wire, J m⁻³ K⁻¹: platinum (types R, S,
+#: B: 21 450 kg m⁻³ × 133 J kg⁻¹ K⁻¹ = 2.85e6) is the lowest of the usual alloys (type K
+#: ≈ 8 700 × 450 = 3.9e6). The lower ρc, the weaker the convection a given τ implies.
+WIRE_RHO_C_MIN = 2.8e6
+#: Least Nusselt number of a wire in cross flow: Collis & Williams (1959) give
+#: Nu = 0.24 + 0.56 Re^0.45 down to Re = 0.02, where Nu = 0.34; natural convection of a
+#: fine wire in still gas is of the same order.
+NUSSELT_MIN = 0.3
+#: Least wall temperature, K: no duct or test cell wall is colder than 200 K.
+WALL_MIN_K = 200.0
+
+
+def air_conductivity(temperature_k: float) -> float:
+    """Thermal conductivity of air at ``temperature_k`` (K), W m⁻¹ K⁻¹.
+
+    0.0241 (T/273.15)^0.81: within 4 % of Incropera & DeWitt (2007, Table A.4), 250–1 000 K.
+    """
+    return 0.0241 * (temperature_k / KELVIN) ** 0.81
+
+
+def max_radiation_ratio(tau_s: float, mean_c: float) -> float:
+    """Largest radiative/convective conductance ratio ρ = 4 ε σ T̄³/h physics allows.
+
+    For a wire of time constant ``tau_s`` (s) at the mean temperature ``mean_c`` (degrees C).
+    A cylinder in cross flow has τ = ρc d/(4h) and h = Nu k/d, so h = √(Nu k ρc/(4τ)): the
+    least h comes from the least Nu (:data:`NUSSELT_MIN`) and ρc (:data:`WIRE_RHO_C_MIN`),
+    with k of air at the mean temperature; ε ≤ 1 then bounds ρ.
+    """
+    mean_k = mean_c + KELVIN
+    h_min = math.sqrt(NUSSELT_MIN * air_conductivity(mean_k) * WIRE_RHO_C_MIN / (4.0 * tau_s))
+    return 4.0 * STEFAN_BOLTZMANN * mean_k**3 / h_min
 
 
 class Radiation(Effect):
@@ -37,26 +71,28 @@ class Radiation(Effect):
     )
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
+        # Physical bounds: emissivity <= 1 with the weakest convection the base τ allows, and
+        # a wall between WALL_MIN_K and the gas's mean temperature.
+        mean = context.level_mean_c
+        taus = context.base_taus_s
+        uppers = (1.0, 1.0) if taus is None else [max_radiation_ratio(t, mean) for t in taus]
         return (
-            ParamSpec(
-                name="rho1",
-                unit="1",
-                lower=0.0,
-                upper=1.0,
-                description="radiative/convective conductance 4 r1 T^3 of tc1 at the mean",
-            ),
-            ParamSpec(
-                name="rho2",
-                unit="1",
-                lower=0.0,
-                upper=1.0,
-                description="radiative/convective conductance 4 r2 T^3 of tc2 at the mean",
+            *(
+                ParamSpec(
+                    name=f"rho{i}",
+                    unit="1",
+                    lower=0.0,
+                    upper=min(uppers[i - 1], 1.0),
+                    description=f"radiative/convective conductance 4 r{i} T^3 of tc{i} at the "
+                    "mean",
+                )
+                for i in (1, 2)
             ),
             ParamSpec(
                 name="wall_c",
                 unit="degC",
-                lower=-KELVIN + 1.0,
-                upper=context.level_mean_c,
+                lower=WALL_MIN_K - KELVIN,
+                upper=max(mean, WALL_MIN_K - KELVIN + 1.0),
                 description="wall temperature",
             ),
         )
@@ -69,7 +105,8 @@ class Radiation(Effect):
         tc2: NDArray[np.float64],
     ) -> list[dict[str, float]]:
         mean = context.level_mean_c
-        walls = (max(0.5 * (mean - KELVIN), -KELVIN + 2.0), mean - 2.0 * context.level_std_c)
+        lowest = WALL_MIN_K - KELVIN + 1.0
+        walls = (max(0.5 * (mean - KELVIN), lowest), max(mean - 2.0 * context.level_std_c, lowest))
         return [
             {"rho1": r1, "rho2": r2, "wall_c": min(wall, mean - 1.0)}
             for wall in walls

@@ -14,6 +14,7 @@ from .calibration import Calibration
 from .conduction import Conduction
 from .delay import Delay
 from .noise_ratio import NoiseRatio
+from .property import Property
 from .radiation import Radiation
 from .velocity import Velocity
 
@@ -23,7 +24,7 @@ __all__ = ["EFFECTS", "EFFECT_NAMES", "check_effect_names"]
 #: a new effect adds its name there too, ``test/test_cli.py`` checks the two agree).
 EFFECTS: dict[str, type[Effect]] = {
     effect.name: effect
-    for effect in (Conduction, Radiation, Velocity, Delay, Calibration, NoiseRatio)
+    for effect in (Conduction, Radiation, Velocity, Property, Delay, Calibration, NoiseRatio)
 }
 
 

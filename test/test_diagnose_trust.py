@@ -1,0 +1,116 @@
+"""Issue 15: physical bounds, confidence intervals, absolute significance, the property effect
+and the unexplained verdict, checked on our effect simulator and on the independent detailed
+physics simulator (test/detailed_physics.py)."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from detailed_physics import Rig, simulate_rig
+
+from tcomp_core.diagnose import diagnose, fit_effects
+from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_significant
+from tcomp_core.diagnose.result import ModelFit
+from tcomp_core.effects import make_context
+from tcomp_core.effects.radiation import Radiation, max_radiation_ratio
+from tcomp_core.io import Record
+from tcomp_core.simulate_effects import RADIATION_MEAN_C, RADIATION_RHO1, simulate_effect
+
+
+def _record(sim, name="x"):
+    return Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=name, dt=sim.dt)
+
+
+def test_radiation_bound_follows_emissivity_one_and_the_weakest_convection():
+    # A 50 degC rig cannot radiate like a 700 degC exhaust: the bound grows as T^3 / h_min.
+    cold = max_radiation_ratio(0.1168, 50.0)
+    hot = max_radiation_ratio(0.0238, RADIATION_MEAN_C)
+    assert cold < 0.05 < RADIATION_RHO1 < hot
+    # h_min ~ tau^-1/2, so the bound grows as sqrt(tau).
+    assert max_radiation_ratio(0.4, 300.0) / max_radiation_ratio(0.1, 300.0) == pytest.approx(2.0)
+    time = np.arange(1000) * 0.002
+    context = make_context(
+        time, 50.0 + np.sin(time), 50.0 + np.sin(time), 0.002, base_taus_s=(0.0238, 0.1168)
+    )
+    specs = {spec.name: spec for spec in Radiation().specs(context)}
+    assert specs["rho1"].upper == pytest.approx(max_radiation_ratio(0.0238, context.level_mean_c))
+    assert specs["rho2"].upper == pytest.approx(max_radiation_ratio(0.1168, context.level_mean_c))
+    assert specs["wall_c"].lower == pytest.approx(200.0 - 273.15)
+
+
+def _fit(error, raw, floor, blocks, params, at_bound=()):
+    return ModelFit(
+        effects=(),
+        params=params,
+        tau1=0.02,
+        tau2=0.1,
+        error_pct=error,
+        raw_error_pct=raw,
+        noise_floor_pct=floor,
+        train_error_pct=error,
+        block_errors_pct=np.asarray(blocks, dtype=float),
+        predicted=np.zeros(3),
+        gas1=np.zeros(3),
+        gas2=np.zeros(3),
+        n_params=len(params),
+        at_bound=at_bound,
+    )
+
+
+def test_significance_needs_a_fall_above_the_floor_inside_the_physical_range():
+    taus = {"tau1": 0.02, "tau2": 0.1}
+    current = _fit(5.0, 5.2, 1.0, [5.0, 5.5, 4.8, 5.2, 5.1], taus)
+    better = dict(error=1.0, raw=1.4, floor=1.0, blocks=[1.2, 1.5, 1.1, 1.3, 1.4])
+    with_gain = {**taus, "gain": 1.02, "offset_c": 0.1}
+    assert is_significant(current, _fit(**better, params=with_gain))
+    # The same fall with the new gain on its bound: physics does not allow it.
+    assert not is_significant(current, _fit(**better, params=with_gain, at_bound=("gain",)))
+    # A τ of the earlier model on a bound does not count against the new effect.
+    assert is_significant(current, _fit(**better, params=with_gain, at_bound=("tau1",)))
+    # A raw fall of 45 %, every block better, but the model error falls by 0.35 % against a
+    # 2 % noise floor: not a clear part of the error above the floor.
+    small = _fit(0.6, 2.0, 2.0, [1.9, 2.1, 1.8, 2.0, 2.05], taus)
+    smaller = _fit(0.25, 1.1, 2.0, [1.0, 1.2, 1.1, 1.0, 1.1], with_gain)
+    assert MIN_FALL_PER_FLOOR * 2.0 > 0.6 - 0.25
+    assert not is_significant(small, smaller)
+    assert is_significant(dataclasses.replace(small, noise_floor_pct=0.5), smaller)
+
+
+@pytest.mark.slow
+def test_calibration_intervals_cover_the_truth_and_are_tight():
+    covered, widths = {"tau1": 0, "tau2": 0, "gain": 0, "offset_c": 0}, []
+    seeds = range(6)
+    for seed in seeds:
+        sim = simulate_effect("calibration", "multisine", noise_percent=1.0, seed=seed)
+        final = fit_effects(_record(sim), ["calibration"]).final
+        truth = {"tau1": sim.tau1, "tau2": sim.tau2, **sim.params}
+        for name in covered:
+            low, high = final.intervals[name]
+            covered[name] += low <= truth[name] <= high
+        widths.append(final.intervals["gain"][1] - final.intervals["gain"][0])
+        assert final.params["gain"] == pytest.approx(sim.params["gain"], rel=0.005)
+    assert all(count >= len(seeds) - 1 for count in covered.values()), covered
+    assert max(widths) < 0.02  # +-1 %: an interval, not a shrug
+
+
+def _rig(**overrides):
+    base = Rig(duration_s=10.0, rate_hz=2000.0, noise_c=(0.05, 0.05), adc_bits=16)
+    return dataclasses.replace(base, **overrides)
+
+
+@pytest.mark.slow
+def test_mains_on_one_channel_is_unexplained_and_named():
+    rig = _rig(seed=3, mains_hz=50.0, mains_amplitude_c=0.5, mains_channel=2)
+    found = diagnose(_record(simulate_rig(rig), "mains"))
+    assert found.verdict == "unexplained"
+    assert "spectral line at 49" in found.unexplained or "at 50" in found.unexplained
+    assert "on tc2" in found.unexplained
+
+
+@pytest.mark.slow
+def test_clean_detailed_records_with_frozen_properties_give_none():
+    for seed in range(2):
+        record = _record(simulate_rig(_rig(seed=seed, frozen_gas_properties=True)))
+        found = diagnose(record)
+        assert found.verdict == "none", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+        assert not found.unexplained
