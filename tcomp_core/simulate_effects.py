@@ -81,9 +81,9 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "sigma_ratio": (0.0, np.inf, False),
     "exponent": (-np.inf, np.inf, False),
 }
-#: Exponent of τ ∝ T^p for ``property``: strong (fine wires in air have |p| ≲ 0.3), so that
-#: 10 s of hot gas show it at K = 1–2 %.
-PROPERTY_EXPONENT = -0.6
+#: Exponent of τ ∝ T^p for ``property``: strong (fine wires in air show a few tenths), so that
+#: 10 s of hot gas show it beyond the ordinary gas-property physics at K = 1–2 %.
+PROPERTY_EXPONENT = -0.8
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -9,7 +9,7 @@ import pytest
 from detailed_physics import Rig, simulate_rig
 
 from tcomp_core.diagnose import diagnose, fit_effects
-from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_significant
+from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_material, is_significant
 from tcomp_core.diagnose.result import ModelFit
 from tcomp_core.effects import make_context
 from tcomp_core.effects.radiation import Radiation, max_radiation_ratio
@@ -114,3 +114,43 @@ def test_clean_detailed_records_with_frozen_properties_give_none():
         found = diagnose(record)
         assert found.verdict == "none", [(s.effect, s.error_pct) for s in found.suspects[:3]]
         assert not found.unexplained
+
+
+@pytest.mark.slow
+def test_clean_detailed_rig_with_realistic_gas_properties_gives_none():
+    # τ follows the film temperature (Collis & Williams at the film temperature): the clean
+    # 20–80 degC rig used to read calibration or radiation. The property fit now explains it
+    # as the wires' ordinary physics, and the time constants come out right.
+    for seed in range(2):
+        rec = simulate_rig(_rig(seed=seed))
+        found = diagnose(_record(rec))
+        assert found.verdict == "none", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+        assert found.expected_physics == ["property"]
+        assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.02)
+        assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.02)
+
+
+@pytest.mark.slow
+def test_a_strong_property_effect_is_found_with_its_exponent():
+    sim = simulate_effect("property", "multisine", noise_percent=1.0, seed=1)
+    found = diagnose(_record(sim))
+    assert found.verdict == "property", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+    exponent = found.final.params["property_exponent"]
+    assert exponent == pytest.approx(sim.params["exponent"], abs=0.1)
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.02)
+    assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.02)
+    assert found.base.error_pct >= 5.0 * found.final.error_pct
+
+
+def test_a_calibration_below_the_fits_resolution_is_not_material():
+    class _Context:
+        level_mean_c = 500.0
+
+    class _Evaluator:
+        context = _Context()
+
+    taus = {"tau1": 0.05, "tau2": 0.2}
+    tiny = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": 0.9999, "offset_c": -0.046})
+    real = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": 1.0, "offset_c": -0.5})
+    assert not is_material("calibration", tiny, _Evaluator())
+    assert is_material("calibration", real, _Evaluator())

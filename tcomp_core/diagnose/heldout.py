@@ -136,9 +136,18 @@ class Evaluator:
         """tc1 and tc2 at the working rate."""
         return self.data.tc1, self.data.tc2
 
-    def fit(self, model: Model) -> Model:
-        """Fit ``model`` on the estimation blocks."""
-        return model.fit(*self._fit_inputs, self.data.training_rows)
+    def fit(self, model: Model, hold: frozenset[str] = frozenset()) -> Model:
+        """Fit ``model`` on the estimation blocks (``hold``: parameters kept as they are)."""
+        return model.fit(*self._fit_inputs, self.data.training_rows, hold)
+
+    def training_error(self, model: Model) -> float:
+        """Raw free-run error of the slow sensor on the estimation blocks, % (no scores else)."""
+        readings = self.readings
+        fast = 3 - self.slow
+        measured = readings[self.slow - 1]
+        predicted = model.simulate(readings[fast - 1], fast, float(measured[0]), self.context)
+        keep = ~self.data.validation & self.scored_mask(model)
+        return heldout_error_percent(self.lowpass(measured), self.lowpass(predicted), keep)
 
     @cached_property
     def _fit_inputs(
@@ -170,10 +179,14 @@ class Evaluator:
         """``fit`` with its parameters refitted on the whole record, its held-out scores kept.
 
         Held-out blocks choose the model; once chosen, its parameters are best estimated from
-        all the data (half the variance). The simulation and reconstructions follow the new
-        parameters; the errors remain those of the held-out test.
+        all the data (half the variance); parameters chosen by the output error
+        (:attr:`~tcomp_core.effects.base.Effect.output_error_params`) keep their values. The
+        simulation and reconstructions follow the new parameters; the errors remain those of
+        the held-out test.
         """
-        model = Model(fit.effects, fit.params).fit(*self._fit_inputs)
+        chosen = Model(fit.effects, fit.params)
+        held = frozenset(n for e in chosen.instances for n in e.output_error_params)
+        model = chosen.fit(*self._fit_inputs, hold=held)
         intervals, at_bound = parameter_uncertainty(model, *self._fit_inputs)
         readings = self.readings
         fast = 3 - self.slow

@@ -74,6 +74,7 @@ def _evaluator(data: PreparedData, taus: dict[str, float]) -> Evaluator:
         tau_scale_s=max(taus.values()),
         sigma2=max(data.noise2.sigma / np.sqrt(data.decimation), 1e-9 * (1.0 + np.std(data.tc2))),
         base_taus_s=(taus["tau1"], taus["tau2"]),
+        film_cutoff_hz=max(data.band_edge_hz),
     )
     nyquist = 0.5 / data.dt
     duration = data.time[-1] + data.dt

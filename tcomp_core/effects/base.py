@@ -80,6 +80,8 @@ class FitContext:
     base_taus_s : tuple of float or None
         τ1, τ2 of the first-order model, s: effects derive physical bounds from them (None:
         unknown, the bounds are the widest).
+    film_cutoff_hz : float or None
+        Band edge of the gas signal, Hz, where the gas setting a film temperature is low-passed.
     """
 
     dt: float
@@ -92,6 +94,7 @@ class FitContext:
     sigma2: float = 1.0
     noise_kernel: NDArray[np.float64] | None = None
     base_taus_s: tuple[float, float] | None = None
+    film_cutoff_hz: float | None = None
 
     @property
     def duration_s(self) -> float:
@@ -110,6 +113,12 @@ class Effect:
     #: one dict of values per choice, carried in the parameters (see
     #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`); the first is the default.
     setting_choices: ClassVar[tuple[dict[str, float], ...]] = ()
+    #: Parameters the cross-relation criterion hardly sees through the noise it amplifies, and
+    #: which it biases (a noisy pole reweights its own residuals): chosen instead by the
+    #: free-run (output) error of the slow sensor on the estimation blocks, a bounded 1-D search
+    #: each, the other parameters fitted by the cross-relation in between (see
+    #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`).
+    output_error_params: ClassVar[tuple[str, ...]] = ()
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         """The effect's fitted parameters and their bounds for this record."""

@@ -63,6 +63,10 @@ class SensorChain:
     level_exponent, level_ref_k : float
         τ scales as (T/T_ref)^level_exponent with the film temperature T in kelvin, halfway
         between the junction and the gas (gas properties); 0 means none.
+    film_sos : ndarray or None
+        Zero-phase low-pass (second-order sections) applied to the gas before it sets the film
+        temperature: the gas reconstructed from readings carries their noise amplified, and
+        noise in the pole biases the fit of the exponent towards 0 (errors in variables).
     r, wall_k : float
         Radiation coefficient (K⁻³) and wall temperature (K); ``r = 0`` means none.
     delay_s : float
@@ -81,6 +85,7 @@ class SensorChain:
     delay_s: float = 0.0
     level_exponent: float = 0.0
     level_ref_k: float = 1.0
+    film_sos: NDArray[np.float64] | None = None
 
     def poles(
         self, n: int, dt: float, kelvin: NDArray[np.float64] | None = None
@@ -263,7 +268,7 @@ def gas_from_reading(
     for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
         # τ follows the film temperature, halfway between the junction and the gas: the
         # implicit inverse by fixed-point steps from the constant-τ gas.
-        a = chain.poles(reading.size, dt, 0.5 * (junction_k + gas + KELVIN))
+        a = chain.poles(reading.size, dt, 0.5 * (junction_k + _film_gas(chain, gas) + KELVIN))
         gas, tap = _invert_lag(chain, lagged, a, junction_k)
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
@@ -275,6 +280,13 @@ def gas_from_reading(
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
     noise_gain = (scale / chain.gain) ** 2 * energy / (1.0 - a) ** 2
     return gas, np.broadcast_to(noise_gain, gas.shape)
+
+
+def _film_gas(chain: SensorChain, gas: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The gas temperature that sets the film temperature: low-passed when the chain says so."""
+    if chain.film_sos is None or gas.size <= 3 * 2 * chain.film_sos.shape[0] + 1:
+        return gas
+    return signal.sosfiltfilt(chain.film_sos, gas)
 
 
 #: Fixed-point steps of the inverse with a level-dependent τ: each gains the factor p Δτ/τ
@@ -328,7 +340,7 @@ def reading_from_gas(
     if chain.level_exponent:
         # τ follows the sensor's own temperature: the pole of each step from the state.
         base = replace(chain, level_exponent=0.0).poles(n, dt)
-        level = (chain.level_exponent, chain.level_ref_k)
+        level = (chain.level_exponent, chain.level_ref_k, _film_gas(chain, seen) / scale)
         lagged = _lag_loop(drive, base, start, chain.r / scale, scale, chain.wall_k**4, level)
     elif chain.r == 0.0 and chain.factor is None:
         a = math.exp(-dt * (1.0 + chain.kappa) / chain.tau)
@@ -355,20 +367,22 @@ def _lag_loop(
     r_scaled: float,
     scale: float,
     wall4: float,
-    level: tuple[float, float] | None = None,
+    level: tuple[float, float, NDArray[np.float64]] | None = None,
 ) -> NDArray[np.float64]:
     """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r' ((s y[k] + K)^4 - T_w^4)).
 
-    With ``level = (exponent, T_ref)`` the pole of step k is a_k^(1/(T/T_ref)^exponent) at the
-    film temperature T, halfway between the state's s y[k] + K and the gas s u[k] + K (τ
-    varying with the level), ``a`` then holding the poles without that factor.
+    With ``level = (exponent, T_ref, film_drive)`` the pole of step k is
+    a_k^(1/(T/T_ref)^exponent) at the film temperature T, halfway between the state's
+    s y[k] + K and the gas s film_drive[k] + K (τ varying with the level), ``a`` then holding
+    the poles without that factor.
     """
     out = [start]
     y = start
-    for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
+    films = (drive if level is None else level[2]).tolist()
+    for u, pole, film_u in zip(drive.tolist(), a.tolist(), films, strict=True):
         kelvin = scale * y + KELVIN
         if level is not None:  # τ at the film temperature, halfway to the gas
-            film = 0.5 * (kelvin + scale * u) + 0.5 * KELVIN
+            film = 0.5 * (kelvin + scale * film_u) + 0.5 * KELVIN
             ratio = min(max(film / level[1], 0.5), 2.0)  # as in SensorChain.poles
             pole = pole ** (1.0 / ratio ** level[0])
         loss = r_scaled * (kelvin**4 - wall4) if r_scaled else 0.0

@@ -15,6 +15,7 @@ C0(φ).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -22,6 +23,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import signal
 from scipy.optimize import least_squares
 
 from ..errors import EstimationError
@@ -46,6 +48,7 @@ def make_context(
     tau_scale_s: float | None = None,
     sigma2: float = 1.0,
     base_taus_s: tuple[float, float] | None = None,
+    film_cutoff_hz: float | None = None,
 ) -> FitContext:
     """Build the :class:`FitContext` of a record.
 
@@ -68,6 +71,9 @@ def make_context(
         Noise standard deviation of thermocouple 2 at this sample rate, degrees C.
     base_taus_s : tuple of float, optional
         τ1, τ2 of the first-order model, s (for the effects' physical bounds).
+    film_cutoff_hz : float, optional
+        Band edge of the gas signal, Hz: the gas that sets the film temperature of a
+        level-dependent τ is low-passed there (default: not low-passed).
     """
     time = np.asarray(time, dtype=np.float64) - float(time[0])
     both = np.concatenate((tc1, tc2))
@@ -82,6 +88,7 @@ def make_context(
         tau_scale_s=tau_scale_s or 20.0 * dt,
         sigma2=sigma2,
         base_taus_s=base_taus_s,
+        film_cutoff_hz=film_cutoff_hz,
     )
 
 
@@ -103,12 +110,14 @@ class _ChainMemo:
 
     @staticmethod
     def _same(a: SensorChain, b: SensorChain) -> bool:
-        return all(
-            getattr(a, f.name) is getattr(b, f.name)
-            if f.name == "factor"
-            else getattr(a, f.name) == getattr(b, f.name)
-            for f in fields(SensorChain)
-        )
+        for f in fields(SensorChain):
+            left, right = getattr(a, f.name), getattr(b, f.name)
+            if isinstance(left, np.ndarray) or isinstance(right, np.ndarray):
+                if left is not right:  # arrays (factor, film filter) by identity
+                    return False
+            elif left != right:
+                return False
+        return True
 
     def gas(
         self,
@@ -227,6 +236,14 @@ class _Jacobian:
 _EPS_SQRT = math.sqrt(np.finfo(float).eps)
 
 
+@functools.lru_cache(maxsize=16)
+def _film_filter(dt: float, cutoff_hz: float | None) -> NDArray[np.float64] | None:
+    """Second-order Butterworth low-pass for the film temperature's gas (cached: one array)."""
+    if cutoff_hz is None or not 0.0 < cutoff_hz < 0.45 / dt:
+        return None
+    return signal.butter(2, cutoff_hz, output="sos", fs=1.0 / dt)  # shared: do not modify
+
+
 def _effect(name: str) -> Effect:
     """A new instance of a checked effect name."""
     return EFFECTS[name]()
@@ -328,6 +345,7 @@ class Model:
                         chain,
                         level_exponent=exponent,
                         level_ref_k=context.level_mean_c + KELVIN,
+                        film_sos=_film_filter(context.dt, context.film_cutoff_hz),
                     )
                 radiation = effect.radiation(sensor, params, context)
                 if radiation is not None:
@@ -403,6 +421,7 @@ class Model:
         tc2: NDArray[np.float64],
         context: FitContext,
         rows: NDArray[np.bool_] | None = None,
+        hold: frozenset[str] = frozenset(),
     ) -> Model:
         """Fit every parameter by the cross-relation criterion; returns the fitted model.
 
@@ -416,6 +435,8 @@ class Model:
         context : FitContext
         rows : ndarray of bool, shape (N - 1,), optional
             Intervals the criterion uses (default all).
+        hold : frozenset of str
+            Parameters held at their current values (not searched).
 
         Raises
         ------
@@ -424,7 +445,7 @@ class Model:
         """
         if "tau1" not in self.params or "tau2" not in self.params:
             raise EstimationError("the model needs starting values of tau1 and tau2")
-        problem = self.problem(tc1, tc2, context, rows)
+        problem = self.problem(tc1, tc2, context, rows, hold)
         lower, upper = problem.lower, problem.upper
         residuals, jacobian, unpack = problem.residuals, problem.jacobian, problem.unpack
         starts = self._starts(context, problem, tc1, tc2)
@@ -459,6 +480,7 @@ class Model:
         tc2: NDArray[np.float64],
         context: FitContext,
         rows: NDArray[np.bool_] | None = None,
+        hold: frozenset[str] = frozenset(),
     ) -> LeastSquaresProblem:
         """The fit's criterion as a least-squares problem in the search coordinates.
 
@@ -470,7 +492,7 @@ class Model:
         EstimationError
             If too few rows are usable for the parameters.
         """
-        specs = self.specs(context)
+        specs = [spec for spec in self.specs(context) if spec.name not in hold]
         rows = np.ones(tc1.size - 1, dtype=bool) if rows is None else rows
         rows = rows & self._valid_rows(tc1.size, context)
         n_rows = int(rows.sum())
@@ -481,7 +503,8 @@ class Model:
         fixed = {k: v for effect in self.instances for k, v in effect.fixed(context).items()}
         # Settings (Effect.setting_choices) are neither searched nor measured: carried over.
         setting_names = {n for e in self.instances for c in e.setting_choices for n in c}
-        fixed = {**{n: self.params[n] for n in setting_names & self.params.keys()}, **fixed}
+        carried = (setting_names | hold) & self.params.keys()
+        fixed = {**{n: self.params[n] for n in carried}, **fixed}
 
         def unpack(x: NDArray[np.float64]) -> dict[str, float]:
             values = dict(fixed)

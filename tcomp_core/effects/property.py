@@ -32,6 +32,7 @@ class Property(Effect):
 
     name = "property"
     summary = "tau follows the temperature level through the gas properties (property_exponent)"
+    output_error_params = ("property_exponent",)
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         return (
