@@ -83,7 +83,14 @@ RECONSTRUCT_FROM: tuple[str, ...] = get_args(ReconstructFrom)
 #: The effect names used everywhere (API, CLI, JSON, diagnostics), in the order reports list
 #: them.
 EffectName = Literal[
-    "conduction", "radiation", "velocity", "property", "delay", "calibration", "noise_ratio"
+    "conduction",
+    "radiation",
+    "velocity",
+    "property",
+    "delay",
+    "calibration",
+    "interference",
+    "noise_ratio",
 ]
 EFFECT_NAMES: tuple[str, ...] = get_args(EffectName)
 

@@ -296,6 +296,9 @@ def _summary(diagnosis: Diagnosis) -> str:
         _list(d.failure.findings),
         f"<p>{escape(_winner_text(d))}</p>",
         f"<p><b>Unexplained:</b> {escape(d.unexplained)}</p>" if d.unexplained else "",
+        ("<p>What the two signals cannot fix:</p>" + _list(d.identifiability))
+        if d.identifiability
+        else "",
         _intervals(d.final),
     )
 

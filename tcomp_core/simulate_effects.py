@@ -27,6 +27,7 @@ velocity       τi(t) = τi0 (v(t)/v0)^(−m),  v(t)/v0 = 1 + depth sin(2π t / 
 property       τi(t) = τi0 (Tf/T̄)^exponent, film Tf = (Ti + Tg)/2 and the gas mean T̄ in K
 delay          junction 2 sees the gas δ = delay_s later than junction 1
 calibration    tc2 reads gain · T2 + offset_c
+interference   tc2 reads T2 + line_c (sin 2π f t + 0.3 sin 6π f t + 0.1 sin 10π f t), f = line_hz
 noise_ratio    σ2 = sigma_ratio · σ1, so φ = σ1²/σ2² = 1/sigma_ratio²
 =============  ===============================================================================
 """
@@ -80,7 +81,11 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "offset_c": (-np.inf, np.inf, False),
     "sigma_ratio": (0.0, np.inf, False),
     "exponent": (-np.inf, np.inf, False),
+    "line_hz": (0.0, np.inf, False),
+    "line_c": (0.0, np.inf, True),
 }
+#: Relative amplitudes of the odd harmonics 1, 3, 5 of ``interference`` (a rectified pick-up).
+INTERFERENCE_HARMONICS = ((1, 1.0), (3, 0.3), (5, 0.1))
 #: Exponent of τ ∝ T^p for ``property``: strong (fine wires in air show a few tenths), so that
 #: 10 s of hot gas show it beyond the ordinary gas-property physics at K = 1–2 %.
 PROPERTY_EXPONENT = -0.8
@@ -161,6 +166,7 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
         ``velocity``: m (dimensionless), depth (dimensionless), period_s (s).
         ``property``: exponent p of τ ∝ T^p (dimensionless, T in kelvin).
         ``delay``: delay_s (s). ``calibration``: gain (dimensionless), offset_c (degrees C).
+        ``interference``: line_hz (Hz) and line_c, the fundamental's amplitude (degrees C).
         ``noise_ratio``: sigma_ratio = σ2/σ1 (dimensionless).
     """
     effect = _check_effect(effect)
@@ -181,6 +187,8 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
         return {"delay_s": 0.008}
     if effect == "calibration":
         return {"gain": 1.03, "offset_c": -4.0}
+    if effect == "interference":
+        return {"line_hz": 50.0, "line_c": 1.0}
     return {"sigma_ratio": 2.5}
 
 
@@ -486,6 +494,11 @@ def _simulate_clean(
     clean2 = _lti_response(*models[1], gas2, step)[::oversample]
     if effect == "calibration":
         clean2 = params["gain"] * clean2 + params["offset_c"]
+    if effect == "interference":
+        time = np.arange(n) * dt
+        for harmonic, share in INTERFERENCE_HARMONICS:
+            phase = 2.0 * np.pi * harmonic * params["line_hz"] * time
+            clean2 = clean2 + params["line_c"] * share * np.sin(phase)
     return gas[::oversample], clean1, clean2
 
 

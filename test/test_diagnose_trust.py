@@ -3,15 +3,17 @@ and the unexplained verdict, checked on our effect simulator and on the independ
 physics simulator (test/detailed_physics.py)."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
 from detailed_physics import Rig, simulate_rig
 
 from tcomp_core.diagnose import diagnose, fit_effects
+from tcomp_core.diagnose.quantisation import detect_quantisation, in_band_variance
 from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_material, is_significant
 from tcomp_core.diagnose.result import ModelFit
-from tcomp_core.effects import make_context
+from tcomp_core.effects import EFFECT_NAMES, make_context
 from tcomp_core.effects.radiation import Radiation, max_radiation_ratio
 from tcomp_core.io import Record
 from tcomp_core.simulate_effects import RADIATION_MEAN_C, RADIATION_RHO1, simulate_effect
@@ -82,7 +84,10 @@ def test_calibration_intervals_cover_the_truth_and_are_tight():
     seeds = range(6)
     for seed in seeds:
         sim = simulate_effect("calibration", "multisine", noise_percent=1.0, seed=seed)
-        final = fit_effects(_record(sim), ["calibration"]).final
+        found = fit_effects(_record(sim), ["calibration"])
+        final = found.final
+        # Said aloud: two signals see only the relative calibration.
+        assert any("tc1's scale" in text for text in found.identifiability)
         truth = {"tau1": sim.tau1, "tau2": sim.tau2, **sim.params}
         for name in covered:
             low, high = final.intervals[name]
@@ -99,12 +104,39 @@ def _rig(**overrides):
 
 
 @pytest.mark.slow
-def test_mains_on_one_channel_is_unexplained_and_named():
+@pytest.mark.parametrize("channel", [2, 1])
+def test_mains_on_one_channel_is_found_as_interference(channel):
+    rig = _rig(seed=3, mains_hz=50.0, mains_amplitude_c=0.5, mains_channel=channel)
+    rec = simulate_rig(rig)
+    found = diagnose(_record(rec, "mains"))
+    assert found.verdict == "interference", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+    assert found.final.params["interference_hz"] == pytest.approx(50.0, abs=0.01)
+    assert found.final.params["interference_channel"] == channel
+    assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.02)
+    assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.02)
+    assert not found.unexplained
+
+
+@pytest.mark.slow
+def test_without_the_interference_effect_mains_is_unexplained_and_named():
     rig = _rig(seed=3, mains_hz=50.0, mains_amplitude_c=0.5, mains_channel=2)
-    found = diagnose(_record(simulate_rig(rig), "mains"))
+    others = [name for name in EFFECT_NAMES if name != "interference"]
+    found = diagnose(_record(simulate_rig(rig), "mains"), candidates=others)
     assert found.verdict == "unexplained"
-    assert "spectral line at 49" in found.unexplained or "at 50" in found.unexplained
-    assert "on tc2" in found.unexplained
+    text = found.unexplained
+    assert re.search(r"spectral line at (49\.9|50)[.\d]* Hz on tc2", text), text
+
+
+@pytest.mark.slow
+def test_interference_on_the_effect_simulator_recovers_the_line():
+    sim = simulate_effect("interference", "multisine", noise_percent=1.0, seed=1)
+    found = diagnose(_record(sim))
+    p = found.final.params
+    assert found.verdict == "interference"
+    assert p["interference_hz"] == pytest.approx(sim.params["line_hz"], abs=0.01)
+    amplitude = np.hypot(p["interference_a1"], p["interference_b1"])
+    assert amplitude == pytest.approx(sim.params["line_c"], rel=0.05)
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.02)
 
 
 @pytest.mark.slow
@@ -154,3 +186,24 @@ def test_a_calibration_below_the_fits_resolution_is_not_material():
     real = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": 1.0, "offset_c": -0.5})
     assert not is_material("calibration", tiny, _Evaluator())
     assert is_material("calibration", real, _Evaluator())
+
+
+def test_quantisation_is_recognised_from_the_steps():
+    rng = np.random.default_rng(5)
+    slow = 50.0 + 10.0 * np.sin(np.arange(20000) * 2e-4)  # moves << one code per sample
+    step = 1642.0 / 4096  # 12-bit over the type-K range
+    coded = np.round((slow + 0.05 * rng.standard_normal(slow.size)) / step) * step
+    found = detect_quantisation(coded)
+    assert found is not None and found.step_c == pytest.approx(step, rel=1e-9)
+    assert found.in_band and in_band_variance(found) == pytest.approx(step**2 / 12.0)
+    fast = np.round((50.0 + 30.0 * rng.standard_normal(20000)) / step) * step
+    assert not detect_quantisation(fast).in_band  # many codes per sample: white, not counted
+    assert detect_quantisation(slow + 1e-3 * rng.standard_normal(slow.size)) is None
+
+
+@pytest.mark.slow
+def test_a_coarse_adc_is_counted_in_the_noise_floor_not_called_an_effect():
+    rec = simulate_rig(_rig(seed=0, rate_hz=5000.0, adc_bits=12))
+    found = diagnose(_record(rec, "12-bit"))
+    assert found.verdict == "none", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+    assert any("quantised in steps of 0.4" in note for note in found.notes)

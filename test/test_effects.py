@@ -27,6 +27,7 @@ CHAINS = {
     "radiation": SensorChain(tau=0.1, r=0.05 / (4 * 1000.0**3), wall_k=600.0),
     "delay": SensorChain(tau=0.1, delay_s=0.0071),
     "property": SensorChain(tau=0.1, level_exponent=-0.6, level_ref_k=973.15),
+    "interference": SensorChain(tau=0.1, additive=0.5 * np.sin(2 * np.pi * 50.0 * TIME)),
     "all": SensorChain(
         tau=0.1,
         gain=0.97,
@@ -140,5 +141,6 @@ def test_model_refuses_unknown_and_repeated_effects():
         "property",
         "delay",
         "calibration",
+        "interference",
         "noise_ratio",
     }

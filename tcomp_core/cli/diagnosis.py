@@ -90,6 +90,7 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
         )
     if diagnosis.unexplained:
         lines.append(f"unexplained: {diagnosis.unexplained}")
+    lines.extend(f"identifiability: {text}" for text in diagnosis.identifiability)
     for name, value in diagnosis.ref_error_pct.items():
         lines.append(f"reference vs {name}: {value:.3g} % of its spread")
     lines.extend(f"note: {note}" for note in diagnosis.notes)

@@ -111,7 +111,8 @@ class Evaluator:
         The slow sensor's noise passes the low-pass L (forward and backward: |L|⁴ in power);
         the fast sensor's passes the first-order model H from fast to slow first. Integrated
         over the band: (1/π) ∫₀^π |L|⁴ (σ_slow² + σ_fast² |H|²) dω, with the noise levels at
-        the working rate.
+        the working rate, plus the rounding error of an ADC whose codes stick for runs of
+        samples, which lies in the band (:mod:`tcomp_core.diagnose.quantisation`).
         """
         omega, response = signal.sosfreqz(self._sos, worN=4096)
         data = self.data
@@ -125,7 +126,9 @@ class Evaluator:
             (1.0 - a_fast) * (1.0 - a_slow * shift)
         )
         power = np.abs(response) ** 4 * (slow**2 + fast**2 * np.abs(gain) ** 2)
-        return float(trapezoid(power, omega) / math.pi)
+        # An ADC's rounding error that follows the signal lies in band (|H| = 1 at DC).
+        in_band = data.in_band_noise(self.slow) + data.in_band_noise(3 - self.slow)
+        return float(trapezoid(power, omega) / math.pi) + in_band
 
     def lowpass(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """The comparison low-pass (zero phase)."""

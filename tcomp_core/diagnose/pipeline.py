@@ -143,6 +143,18 @@ def _notes(data: PreparedData, evaluator: Evaluator) -> list[str]:
         f"noise from the {data.noise_source}: sigma1 = {data.noise1.sigma:.3g} degC, sigma2 = "
         f"{data.noise2.sigma:.3g} degC (phi = {data.phi_hat:.3g})"
     )
+    for sensor, quantisation in enumerate(data.quantisation, start=1):
+        if quantisation is not None:
+            where = (
+                "the codes stick for runs of samples, so the rounding error follows the signal "
+                "and is counted in the noise floor and phi as in-band noise of q^2/12"
+                if quantisation.in_band
+                else "the rounding error is white and already in the spectral noise"
+            )
+            notes.append(
+                f"tc{sensor} is quantised in steps of {quantisation.step_c:.4g} degC (an ADC): "
+                f"{where}"
+            )
     measured = (data.tc1, data.tc2)[evaluator.slow - 1]
     spectrum = np.abs(np.fft.rfft(measured - measured.mean())) ** 2
     share = np.sort(spectrum)[::-1][:5].sum() / spectrum.sum()
@@ -185,6 +197,10 @@ def _staircase(
 def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) -> Diagnosis:
     data = evaluator.data
     notes = _notes(data, evaluator)
+    final = Model(steps[-1].effects, steps[-1].params)
+    identifiability = [
+        text for effect in final.instances if (text := effect.identifiability(final.params))
+    ]
     for name in expected:
         notes.append(
             f"{name}: added as the sensors' ordinary physics, not a finding (time constants "
@@ -214,6 +230,7 @@ def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) ->
         notes=notes,
         unexplained=describe_unexplained(evaluator, steps[-1]),
         expected_physics=list(expected),
+        identifiability=identifiability,
     )
 
 

@@ -24,6 +24,7 @@ from ..estimators import estimate
 from ..io import Record
 from ..noise import NoiseEstimate, estimate_noise, model_noise, signal_band_edge
 from ..validation import check_excitation
+from .quantisation import Quantisation, detect_quantisation, in_band_variance
 
 __all__ = ["PreparedData", "block_length_s", "prepare"]
 
@@ -66,6 +67,8 @@ class PreparedData:
         True on held-out samples.
     block_starts : ndarray of int, shape (B + 1,)
         Sample index where each block starts, then N.
+    quantisation : tuple of (Quantisation or None)
+        The ADC grid each raw reading lies on (:mod:`.quantisation`), or None.
     """
 
     source: str
@@ -81,11 +84,20 @@ class PreparedData:
     validation: NDArray[np.bool_]
     block_starts: NDArray[np.intp]
     noise_source: str = "spectra"
+    quantisation: tuple[Quantisation | None, Quantisation | None] = (None, None)
 
     @property
     def phi_hat(self) -> float:
-        """Noise variance ratio σ1²/σ2² from the spectra."""
-        return float(np.clip((self.noise1.sigma / self.noise2.sigma) ** 2, 1e-3, 1e3))
+        """Noise variance ratio σ1²/σ2², in-band quantisation counted (:meth:`in_band_noise`)."""
+        variances = [
+            self.noise1.sigma**2 + self.in_band_noise(1),
+            self.noise2.sigma**2 + self.in_band_noise(2),
+        ]
+        return float(np.clip(variances[0] / variances[1], 1e-3, 1e3))
+
+    def in_band_noise(self, sensor: int) -> float:
+        """Variance of sensor's rounding error that lies in the signal's band, degC²."""
+        return in_band_variance(self.quantisation[sensor - 1])
 
     @property
     def training_rows(self) -> NDArray[np.bool_]:
@@ -193,4 +205,5 @@ def prepare(record: Record) -> PreparedData:
         band_edge_hz=edges,
         validation=validation,
         block_starts=starts,
+        quantisation=(detect_quantisation(record.tc1), detect_quantisation(record.tc2)),
     )

@@ -179,6 +179,9 @@ class Diagnosis:
         When the final model stays well above the noise floor, what its residual shows, in
         words (:mod:`tcomp_core.diagnose.unexplained`); ``""`` otherwise. The verdict is
         ``"unexplained"`` when no effect was found at all.
+    identifiability : list of str
+        Per effect of the final model, what the two signals cannot fix and which prior or
+        convention decided it.
     expected_physics : list of str
         Effects added to the model as the sensors' ordinary physics, not findings (a ``property``
         of ordinary size: :func:`tcomp_core.diagnose.ranking.is_expected_physics`).
@@ -207,6 +210,7 @@ class Diagnosis:
     notes: list[str] = field(default_factory=list)
     unexplained: str = ""
     expected_physics: list[str] = field(default_factory=list)
+    identifiability: list[str] = field(default_factory=list)
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
@@ -217,7 +221,8 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
     (best first) [{effect, error_pct, evidence, signature, significant}], ``verdict`` (an effect,
     ``"none"`` or ``"unexplained"``), ``final`` {effects, tau1, tau2, error_pct, intervals_95,
     at_bound, ...}, ``steps`` (the error staircase), ``rounds``, ``ref_error_pct``, ``notes``,
-    ``unexplained`` (the residual's signature in words, or ""), ``expected_physics``.
+    ``unexplained`` (the residual's signature in words, or ""), ``expected_physics``,
+    ``identifiability``.
     """
     return {
         "source": diagnosis.source,
@@ -243,4 +248,5 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
         "notes": list(diagnosis.notes),
         "unexplained": diagnosis.unexplained,
         "expected_physics": list(diagnosis.expected_physics),
+        "identifiability": list(diagnosis.identifiability),
     }

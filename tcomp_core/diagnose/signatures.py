@@ -8,6 +8,7 @@ Each effect leaves its own mark on the residual of the model it is missing from:
 * property: a residual that follows the rate of change in proportion to the level (τ ∝ T^p);
 * delay: a residual correlated with the rate of change of the input at a small lag;
 * calibration: a residual offset and a slope against the temperature level;
+* interference: a spectral line on one channel that the other does not share;
 * noise_ratio: unequal noise floors in the two spectra (φ ≠ 1).
 
 The statistics here are computed on the residual of the model the effect is added to, so they
@@ -16,6 +17,7 @@ hold in every round of the staircase.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -135,6 +137,16 @@ def _calibration(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     )
 
 
+def _interference(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
+    p = fit.params
+    channel = int(p.get("interference_channel", 2))
+    amplitude = math.hypot(p["interference_a1"], p["interference_b1"])
+    return (
+        f"tc{channel} carries a line the other channel does not share; refit: "
+        f"{p['interference_hz']:.5g} Hz, {amplitude:.3g} degC at the fundamental, on tc{channel}"
+    )
+
+
 def _noise_ratio(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     data = evaluator.data
     return (
@@ -153,6 +165,7 @@ _SIGNATURES: dict[str, Callable[[Evaluator, ModelFit, ModelFit], str]] = {
     "property": _property,
     "delay": _delay,
     "calibration": _calibration,
+    "interference": _interference,
     "noise_ratio": _noise_ratio,
 }
 

@@ -5,10 +5,10 @@ no effect in the library accounts for the rest, and the diagnosis says so. The r
 slow sensor simulated from the fast one (``measured − predicted`` at the working rate, not
 low-passed) is then described by the marks it carries:
 
-* a spectral line on one channel: a frequency whose power in that reading stands
-  :data:`LINE_PROMINENCE` times above its neighbourhood and exceeds by :data:`LINE_EXCESS`
-  what the other reading and the sensors' first-order relation predict (the gas signal's own
-  harmonics are in both readings, a mains line on tc2 is not in tc1), with its harmonics;
+* a spectral line on one channel that the other reading and the sensors' first-order relation
+  do not explain (:func:`tcomp_core.effects.interference.find_line`: the gas signal's own
+  harmonics are in both readings, a mains line on tc2 is not in tc1), when the
+  ``interference`` effect could not take it (it was not a candidate, or not significant);
 * error growing with the level: the residual's rms in the top fifth of the level against the
   bottom fifth;
 * energy near Nyquist: the residual's power above :data:`NYQUIST_SHARE` of the Nyquist
@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 from ..effects import Model
+from ..effects.interference import find_line
 from .heldout import Evaluator
 from .result import ModelFit
 
@@ -36,12 +36,6 @@ __all__ = ["describe_unexplained", "is_unexplained"]
 UNEXPLAINED_PER_FLOOR = 2.0
 #: ...and this many percent of the slow sensor's spread.
 UNEXPLAINED_MIN_PCT = 1.0
-#: A line's power over the median of its neighbourhood (±:data:`LINE_NEIGHBOURS` bins).
-LINE_PROMINENCE = 20.0
-LINE_NEIGHBOURS = 12
-#: A line belongs to one channel when its power there exceeds what the other channel and the
-#: sensors' first-order relation predict by this factor.
-LINE_EXCESS = 4.0
 #: "Near Nyquist" starts at this share of the Nyquist frequency; named above this share of power.
 NYQUIST_SHARE = 0.8
 NYQUIST_MIN_POWER = 0.25
@@ -62,50 +56,15 @@ def is_unexplained(fit: ModelFit) -> bool:
 
 def _line(evaluator: Evaluator, fit: ModelFit) -> str | None:
     """The strongest line one channel carries beyond what the other explains, in words."""
-    fs = 1.0 / evaluator.data.dt
     readings = evaluator.readings
-    nperseg = int(min(readings[0].size, 2 ** math.ceil(math.log2(fs))))  # ~1 Hz bins
-    freq, p1 = signal.welch(readings[0], fs=fs, nperseg=nperseg)
-    _, p2 = signal.welch(readings[1], fs=fs, nperseg=nperseg)
-    omega = 2.0 * np.pi * freq
-    expected = (1.0 + (omega * fit.tau1) ** 2) / (1.0 + (omega * fit.tau2) ** 2)  # |G2/G1|²
-    excess = np.log(np.maximum(p2, 1e-300) / np.maximum(p1 * expected, 1e-300))
-    best: tuple[float, int, int] | None = None  # (amplitude, bin, channel)
-    for channel, power, sign in ((1, p1, -1.0), (2, p2, 1.0)):
-        prominence = power / np.maximum(_local_median(power), 1e-300)
-        found, _ = signal.find_peaks(power)
-        for peak in found:
-            if peak < 2 or prominence[peak] < LINE_PROMINENCE:
-                continue
-            if sign * excess[peak] < math.log(LINE_EXCESS):
-                continue  # the other channel explains it: part of the gas signal
-            amplitude = math.sqrt(2.0 * float(power[peak - 1 : peak + 2].sum()) * fs / nperseg)
-            if best is None or amplitude > best[0]:
-                best = (amplitude, int(peak), channel)
-    if best is None:
+    line = find_line(*readings, evaluator.data.dt, fit.tau1, fit.tau2)
+    if line is None:
         return None
-    amplitude, line_bin, channel = best
-    power = (p1, p2)[channel - 1]
-    prominence = power / np.maximum(_local_median(power), 1e-300)
-    f0 = float(freq[line_bin])
-    harmonics = [
-        k
-        for k in range(2, 8)
-        if k * f0 < freq[-1]
-        and prominence[int(np.argmin(np.abs(freq - k * f0)))] >= LINE_PROMINENCE
-    ]
-    also = f", with harmonics {', '.join(str(k) for k in harmonics)}" if harmonics else ""
+    f0, channel, amplitude = line
     return (
-        f"a spectral line at {f0:.4g} Hz on tc{channel} (about {amplitude:.3g} degC{also}) that "
+        f"a spectral line at {f0:.4g} Hz on tc{channel} (about {amplitude:.3g} degC) that "
         f"tc{3 - channel} does not share: interference such as mains pick-up"
     )
-
-
-def _local_median(power: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Median of each bin's neighbourhood (±:data:`LINE_NEIGHBOURS` bins)."""
-    padded = np.pad(power, LINE_NEIGHBOURS, mode="reflect")
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * LINE_NEIGHBOURS + 1)
-    return np.median(windows, axis=1)
 
 
 def _level(level: NDArray[np.float64], residual: NDArray[np.float64]) -> str | None:

@@ -124,6 +124,10 @@ class Effect:
         """The effect's fitted parameters and their bounds for this record."""
         return ()
 
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        """What two signals cannot fix about this effect and what decided it ("" if nothing)."""
+        return ""
+
     def starts(
         self,
         context: FitContext,
@@ -151,6 +155,12 @@ class Effect:
     def calibration(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float]:
         """``(gain, offset_c)``: the sensor reads ``gain * T + offset_c``."""
         return 1.0, 0.0
+
+    def additive(
+        self, sensor: int, params: Mapping[str, float], context: FitContext
+    ) -> NDArray[np.float64] | None:
+        """A signal added to the sensor's readings, shape (N,), degrees C, or None."""
+        return None
 
     def conduction(
         self, sensor: int, params: Mapping[str, float]

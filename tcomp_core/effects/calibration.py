@@ -56,6 +56,14 @@ class Calibration(Effect):
     ) -> list[dict[str, float]]:
         return [{"gain": 1.0, "offset_c": 0.0}]
 
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        return (
+            "calibration: only the relative calibration is visible (tc2 reads "
+            f"{params['gain']:.4g} T {params['offset_c']:+.3g} degC where tc1 reads T); which "
+            "sensor is right cannot be told from two signals: the gas temperature is given on "
+            "tc1's scale"
+        )
+
     def calibration(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float]:
         if sensor == 2:
             return params["gain"], params["offset_c"]

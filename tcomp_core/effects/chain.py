@@ -67,6 +67,8 @@ class SensorChain:
         Zero-phase low-pass (second-order sections) applied to the gas before it sets the film
         temperature: the gas reconstructed from readings carries their noise amplified, and
         noise in the pole biases the fit of the exponent towards 0 (errors in variables).
+    additive : ndarray, shape (N,), or None
+        A signal added to the readings after everything else (interference), degrees C.
     r, wall_k : float
         Radiation coefficient (K⁻³) and wall temperature (K); ``r = 0`` means none.
     delay_s : float
@@ -86,6 +88,7 @@ class SensorChain:
     level_exponent: float = 0.0
     level_ref_k: float = 1.0
     film_sos: NDArray[np.float64] | None = None
+    additive: NDArray[np.float64] | None = None
 
     def poles(
         self, n: int, dt: float, kelvin: NDArray[np.float64] | None = None
@@ -247,6 +250,8 @@ def gas_from_reading(
     """
     weights = np.array([1.0])
     edges = None
+    if chain.additive is not None:
+        reading = reading - chain.additive
     if chain.delay_s:
         # The chain is time-invariant, so advancing the reading advances the gas; the reading
         # is smooth (low-passed by the sensor), so it interpolates far better than the gas.
@@ -357,6 +362,8 @@ def reading_from_gas(
     reading = chain.gain * true + chain.offset
     if chain.delay_s:
         reading = _fill_edges(fractional_shift(reading, -chain.delay_s / dt)[0])
+    if chain.additive is not None:
+        reading = reading + chain.additive
     return reading
 
 

@@ -97,6 +97,15 @@ class Conduction(Effect):
             for k1, k2 in ((0.02, 0.1), (0.1, 0.02))
         ]
 
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        ratio = params["tau1"] / params["tau2"]
+        return (
+            "conduction: the two signals fix only G2/G1, so the mode common to both sensors "
+            "(kappa1, kappa2, tau_p and the tau scaled together) is set by the prior "
+            f"kappa1/kappa2 = tau1/tau2 = {ratio:.3g} (wires of one material and length); the "
+            f"fit gives kappa1/kappa2 = {params['kappa1'] / max(params['kappa2'], 1e-12):.3g}"
+        )
+
     def conduction(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float, float]:
         return params[f"kappa{sensor}"], params["tau_p"], params[f"mode{sensor}"]
 

@@ -71,5 +71,11 @@ class Delay(Effect):
         trials.sort(key=lambda trial: trial[0])
         return [{"delay_s": 0.0}] + [start for _, start in trials[:_STARTS]]
 
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        return (
+            "delay: only the relative delay is visible (tc2 sees the gas after tc1); the gas "
+            "temperature is given at tc1's position"
+        )
+
     def delay_s(self, params: Mapping[str, float]) -> float:
         return params["delay_s"]

@@ -329,6 +329,9 @@ class Model:
         for sensor in (1, 2):
             chain = SensorChain(tau=params[f"tau{sensor}"])
             for effect in self.instances:
+                additive = effect.additive(sensor, params, context)
+                if additive is not None:
+                    chain = replace(chain, additive=additive)
                 gain, offset = effect.calibration(sensor, params)
                 if (gain, offset) != (1.0, 0.0):
                     chain = replace(chain, gain=gain, offset=offset)

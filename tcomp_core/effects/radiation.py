@@ -113,6 +113,15 @@ class Radiation(Effect):
             for r1, r2 in ((0.03, 0.08), (0.08, 0.03))
         ]
 
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        ratio = (params["tau2"] / params["tau1"]) ** (1.0 / 3.0)
+        return (
+            "radiation: tau, rho1, rho2 and the wall trade along a shallow valley; the prior "
+            f"rho2/rho1 = (tau2/tau1)^(1/3) = {ratio:.3g} (one emissivity, Nu ~ Re^1/2) picks "
+            f"the member where the data are silent; the fit gives "
+            f"{params['rho2'] / max(params['rho1'], 1e-12):.3g}"
+        )
+
     def radiation(
         self, sensor: int, params: Mapping[str, float], context: FitContext
     ) -> tuple[float, float]:

@@ -13,6 +13,7 @@ from .base import Effect
 from .calibration import Calibration
 from .conduction import Conduction
 from .delay import Delay
+from .interference import Interference
 from .noise_ratio import NoiseRatio
 from .property import Property
 from .radiation import Radiation
@@ -24,7 +25,16 @@ __all__ = ["EFFECTS", "EFFECT_NAMES", "check_effect_names"]
 #: a new effect adds its name there too, ``test/test_cli.py`` checks the two agree).
 EFFECTS: dict[str, type[Effect]] = {
     effect.name: effect
-    for effect in (Conduction, Radiation, Velocity, Property, Delay, Calibration, NoiseRatio)
+    for effect in (
+        Conduction,
+        Radiation,
+        Velocity,
+        Property,
+        Delay,
+        Calibration,
+        Interference,
+        NoiseRatio,
+    )
 }
 
 

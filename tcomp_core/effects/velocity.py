@@ -132,6 +132,12 @@ class Velocity(Effect):
             self._factor = (key, factor)
         return self._factor[1]
 
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        return (
+            "velocity: the level of s(t) trades with tau1 and tau2, so s(t) is normalised to a "
+            "geometric mean of 1 and the time constants are the record's geometric means"
+        )
+
     def log_factor_jacobian(self, context: FitContext) -> dict[str, NDArray[np.float64]]:
         # log s = B c − mean(B c), c0 = 0: linear in the coefficients.
         design = self._design(context)

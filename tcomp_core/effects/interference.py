@@ -1,0 +1,183 @@
+"""Interference: a line and its odd harmonics added to one channel (mains pick-up).
+
+A thermocouple's millivolts pick up the mains (50 or 60 Hz) and its odd harmonics through the
+extension cable and the amplifier's input: the channel reads T + Σ_h (a_h cos 2πhft +
+b_h sin 2πhft), h = 1, 3, 5, on one channel, which the gas does not share. The fit takes the
+line off that channel's readings before the inverse; the frequency starts where the readings
+carry a spectral line that the other channel and the sensors' first-order relation do not
+explain (:func:`find_line`), and both channels are tried (a setting, chosen on held-out data).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from .base import Effect, FitContext, ParamSpec
+
+__all__ = ["HARMONICS", "Interference", "find_line"]
+
+#: Harmonics fitted (odd: a rectifier's and a transformer's pick-up).
+HARMONICS = (1, 3, 5)
+#: A line's power over the median of its neighbourhood (±:data:`LINE_NEIGHBOURS` bins), and
+#: its excess over what the other channel and the first-order relation predict.
+LINE_PROMINENCE = 20.0
+LINE_NEIGHBOURS = 12
+LINE_EXCESS = 4.0
+
+
+def _local_median(power: NDArray[np.float64]) -> NDArray[np.float64]:
+    padded = np.pad(power, LINE_NEIGHBOURS, mode="reflect")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * LINE_NEIGHBOURS + 1)
+    return np.median(windows, axis=1)
+
+
+def find_line(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    tau1: float,
+    tau2: float,
+    channel: int | None = None,
+) -> tuple[float, int, float] | None:
+    """The strongest spectral line one channel carries that the other does not explain.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C.
+    dt : float
+        Sample interval, s.
+    tau1, tau2 : float
+        Time constants, s: the gas's own lines appear in tc2 as in tc1 times |G2/G1|.
+    channel : int, optional
+        Look on this channel only (1 or 2).
+
+    Returns
+    -------
+    (frequency_hz, channel, amplitude_c) or None
+    """
+    fs = 1.0 / dt
+    nperseg = int(min(tc1.size, 2 ** math.ceil(math.log2(fs))))  # ~1 Hz bins
+    freq, p1 = signal.welch(tc1, fs=fs, nperseg=nperseg)
+    _, p2 = signal.welch(tc2, fs=fs, nperseg=nperseg)
+    omega = 2.0 * np.pi * freq
+    expected = (1.0 + (omega * tau1) ** 2) / (1.0 + (omega * tau2) ** 2)  # |G2/G1|²
+    excess = np.log(np.maximum(p2, 1e-300) / np.maximum(p1 * expected, 1e-300))
+    best: tuple[float, int, float] | None = None
+    for number, power, sign in ((1, p1, -1.0), (2, p2, 1.0)):
+        if channel is not None and number != channel:
+            continue
+        prominence = power / np.maximum(_local_median(power), 1e-300)
+        found, _ = signal.find_peaks(power)
+        for peak in found:
+            if peak < 2 or prominence[peak] < LINE_PROMINENCE:
+                continue
+            if sign * excess[peak] < math.log(LINE_EXCESS):
+                continue  # the other channel explains it: part of the gas signal
+            amplitude = math.sqrt(2.0 * float(power[peak - 1 : peak + 2].sum()) * fs / nperseg)
+            if best is None or amplitude > best[2]:
+                # Refine the frequency between bins (parabola through the log powers).
+                left, centre, right = np.log(power[peak - 1 : peak + 2])
+                curvature = left - 2.0 * centre + right
+                shift = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
+                best = (float(freq[peak] + shift * (freq[1] - freq[0])), number, amplitude)
+    return best
+
+
+def _refine(reading: NDArray[np.float64], context: FitContext, f0: float) -> float:
+    """The frequency within ±1 Welch bin of ``f0`` where the record's DFT peaks.
+
+    The phase of a line drifts by 2π Δf T over the record, so the fit needs a start within a
+    fraction of 1/T: the periodogram of the whole record on a grid 20 times finer than 1/T.
+    """
+    centred = reading - reading.mean()
+    grid = f0 + np.linspace(-1.0, 1.0, 2 * 20 + 1) * max(1.0, 2.0 / context.duration_s)
+    grid = grid[grid > 0.0]
+    phases = np.exp(-2j * np.pi * np.outer(grid, context.time))
+    return float(grid[int(np.argmax(np.abs(phases @ centred)))])
+
+
+class Interference(Effect):
+    """``interference_hz`` and the amplitudes ``interference_a{h}``, ``interference_b{h}``."""
+
+    name = "interference"
+    summary = (
+        "a line and its odd harmonics on one channel, e.g. mains pick-up (interference_hz, "
+        "amplitudes)"
+    )
+    setting_choices = ({"interference_channel": 2.0}, {"interference_channel": 1.0})
+
+    def __init__(self) -> None:
+        self._cache: tuple[tuple[float, ...], NDArray[np.float64]] | None = None
+
+    def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
+        span = 10.0 * context.level_std_c + 10.0
+        amplitudes = tuple(
+            ParamSpec(
+                name=f"interference_{part}{h}",
+                unit="degC",
+                lower=-span,
+                upper=span,
+                description=f"{'cosine' if part == 'a' else 'sine'} amplitude of harmonic {h}",
+            )
+            for h in HARMONICS
+            for part in ("a", "b")
+        )
+        frequency = ParamSpec(
+            name="interference_hz",
+            unit="Hz",
+            lower=2.0 / context.duration_s,
+            upper=0.45 / context.dt,
+            description="fundamental frequency of the line",
+        )
+        return (frequency, *amplitudes)
+
+    def starts(
+        self,
+        context: FitContext,
+        params: Mapping[str, float],
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+    ) -> list[dict[str, float]]:
+        channel = int(params.get("interference_channel", 2))
+        line = find_line(tc1, tc2, context.dt, params["tau1"], params["tau2"], channel)
+        zeros = {f"interference_{part}{h}": 0.0 for h in HARMONICS for part in ("a", "b")}
+        reading = (tc1, tc2)[channel - 1]
+        # The strongest line may be a harmonic of the fundamental: try f, f/3 and f/5.
+        candidates = (
+            [_refine(reading, context, line[0] / h) for h in HARMONICS]
+            if line is not None
+            else [50.0, 60.0]
+        )
+        nyquist = 0.45 / context.dt
+        return [{"interference_hz": f, **zeros} for f in candidates if f < nyquist] or [
+            {"interference_hz": 0.25 * nyquist, **zeros}
+        ]
+
+    def additive(
+        self, sensor: int, params: Mapping[str, float], context: FitContext
+    ) -> NDArray[np.float64] | None:
+        if sensor != int(params.get("interference_channel", 2)):
+            return None
+        key = (context.time.size, context.dt, *(params[s.name] for s in self.specs(context)))
+        if self._cache is None or self._cache[0] != key:
+            phase = 2.0 * np.pi * params["interference_hz"] * context.time
+            line = np.zeros(context.time.size)
+            for h in HARMONICS:
+                line += params[f"interference_a{h}"] * np.cos(h * phase)
+                line += params[f"interference_b{h}"] * np.sin(h * phase)
+            line.flags.writeable = False
+            self._cache = (key, line)  # one array per parameter set: the fit's memo keys on it
+        return self._cache[1]
+
+    def identifiability(self, params: Mapping[str, float]) -> str:
+        channel = int(params.get("interference_channel", 2))
+        return (
+            f"interference: the line is put on tc{channel}, the channel whose readings carry "
+            "it beyond what the other explains; a line on both channels alike would look like gas"
+        )
