@@ -67,8 +67,11 @@ def test_significance_needs_a_fall_above_the_floor_inside_the_physical_range():
     assert is_significant(current, _fit(**better, params=with_gain))
     # The same fall with the new gain on its bound: physics does not allow it.
     assert not is_significant(current, _fit(**better, params=with_gain, at_bound=("gain",)))
-    # A τ of the earlier model on a bound does not count against the new effect.
-    assert is_significant(current, _fit(**better, params=with_gain, at_bound=("tau1",)))
+    # A τ the candidate drives onto its bound is a degenerate fit; one already there before
+    # does not count against the new effect.
+    degenerate = _fit(**better, params=with_gain, at_bound=("tau1",))
+    assert not is_significant(current, degenerate)
+    assert is_significant(dataclasses.replace(current, at_bound=("tau1",)), degenerate)
     # A raw fall of 45 %, every block better, but the model error falls by 0.35 % against a
     # 2 % noise floor: not a clear part of the error above the floor.
     small = _fit(0.6, 2.0, 2.0, [1.9, 2.1, 1.8, 2.0, 2.05], taus)

@@ -16,7 +16,8 @@ An effect is *significant* when its refit
   wanted more than physics allows, e.g. radiation beyond emissivity 1);
 * is material (:func:`is_material`): a calibration difference the fit can resolve (gain off by
   :data:`CALIBRATION_MIN_GAIN` or a difference of :data:`CALIBRATION_MIN_OFFSET_C` at the mean
-  level), a radiative conductance of :data:`RADIATION_MIN_RHO` on the wire that radiates more.
+  level), a radiative conductance of :data:`RADIATION_MIN_RHO` on the wire that radiates more,
+  an interference line that one channel carries beyond what the other explains.
   Rectification by the sensors' nonlinear physics (τ following the level) leaves the two
   sensors' means a few hundredths of a degree apart, which is no calibration error.
 
@@ -54,8 +55,9 @@ from scipy import optimize
 
 from ..effects import Model
 from ..effects.base import KELVIN
+from ..effects.interference import HARMONICS, find_line
 from ..effects.property import tau_swing
-from ..errors import TcompError
+from ..errors import EstimationError, TcompError
 from .heldout import Evaluator
 from .residuals import level_errors
 from .result import ModelFit, Suspect
@@ -162,9 +164,13 @@ def block_t(before: NDArray[np.float64], after: NDArray[np.float64]) -> float:
 
 
 def _own_at_bound(candidate: ModelFit, current: ModelFit) -> bool:
-    """Whether a parameter the candidate adds (not τ, not an earlier effect's) is on a bound."""
+    """Whether the candidate put a parameter on a bound: one it adds, or τ (a degenerate fit).
+
+    An earlier effect's parameter already on its bound does not count against the new one.
+    """
     new = set(candidate.params) - set(current.params)
-    return any(name in new for name in candidate.at_bound)
+    moved = {"tau1", "tau2"} - set(current.at_bound)
+    return any(name in new or name in moved for name in candidate.at_bound)
 
 
 def rank(suspects: Sequence[Suspect]) -> list[Suspect]:
@@ -191,22 +197,35 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
     """Fit ``model`` plus the effect ``name`` and score it; the best of its setting choices.
 
     An effect with :attr:`~tcomp_core.effects.base.Effect.setting_choices` is fitted once per
-    choice and the fit with the lowest held-out error is kept.
+    choice and the fit with the lowest held-out error is kept; a choice that cannot be fitted
+    (e.g. no line on that channel for ``interference``) is skipped.
+
+    Raises
+    ------
+    EstimationError
+        When no choice can be fitted (the last choice's error).
     """
     extended = model.with_effect(name)
     effect = extended.instances[-1]
     choices = effect.setting_choices or ({},)
     best: tuple[Model, ModelFit] | None = None
+    failure: Exception | None = None
     for choice in choices:
         start = Model(extended.effects, {**extended.params, **choice})
-        if effect.output_error_params:
-            fitted = _output_error_fit(evaluator, start, effect.output_error_params)
-        else:
-            fitted = evaluator.fit(start)
+        try:
+            if effect.output_error_params:
+                fitted = _output_error_fit(evaluator, start, effect.output_error_params)
+            else:
+                fitted = evaluator.fit(start)
+        except (TcompError, ValueError, np.linalg.LinAlgError) as exc:
+            failure = exc
+            continue
         fit = evaluator.evaluate(fitted)
         if best is None or fit.error_pct < best[1].error_pct:
             best = (fitted, fit)
-    assert best is not None
+    if best is None:
+        assert failure is not None
+        raise EstimationError(str(failure)) from failure
     return best
 
 
@@ -293,6 +312,13 @@ def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
         )
     if name == "radiation":
         return bool(max(p["rho1"], p["rho2"]) >= RADIATION_MIN_RHO)
+    if name == "interference":
+        # The line must be there: one channel carries it beyond what the other explains.
+        channel = int(p["interference_channel"])
+        line = find_line(*evaluator.readings, evaluator.data.dt, fit.tau1, fit.tau2, channel)
+        return line is not None and any(
+            abs(line[0] - h * p["interference_hz"]) <= max(1.0, 0.02 * line[0]) for h in HARMONICS
+        )
     return True
 
 

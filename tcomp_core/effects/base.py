@@ -138,7 +138,8 @@ class Effect:
         """Initial values, one dict per start of the search.
 
         A dict holds the effect's own parameters and may also restart ``tau1``/``tau2``
-        (for effects that shift the time constants far from the base model's).
+        (for effects that shift the time constants far from the base model's). An empty list
+        says the data hold nothing for the effect to fit (the fit then raises).
         """
         return [{}]
 

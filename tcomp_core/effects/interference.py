@@ -148,16 +148,12 @@ class Interference(Effect):
         line = find_line(tc1, tc2, context.dt, params["tau1"], params["tau2"], channel)
         zeros = {f"interference_{part}{h}": 0.0 for h in HARMONICS for part in ("a", "b")}
         reading = (tc1, tc2)[channel - 1]
+        if line is None:
+            return []  # no line on this channel that the other does not share: nothing to fit
         # The strongest line may be a harmonic of the fundamental: try f, f/3 and f/5.
-        candidates = (
-            [_refine(reading, context, line[0] / h) for h in HARMONICS]
-            if line is not None
-            else [50.0, 60.0]
-        )
-        nyquist = 0.45 / context.dt
-        return [{"interference_hz": f, **zeros} for f in candidates if f < nyquist] or [
-            {"interference_hz": 0.25 * nyquist, **zeros}
-        ]
+        low = 2.0 / context.duration_s
+        candidates = [_refine(reading, context, line[0] / h) for h in HARMONICS]
+        return [{"interference_hz": f, **zeros} for f in candidates if f > low]
 
     def additive(
         self, sensor: int, params: Mapping[str, float], context: FitContext

@@ -452,6 +452,11 @@ class Model:
         lower, upper = problem.lower, problem.upper
         residuals, jacobian, unpack = problem.residuals, problem.jacobian, problem.unpack
         starts = self._starts(context, problem, tc1, tc2)
+        if not starts:
+            raise EstimationError(
+                f"{', '.join(self.effects)}: nothing in these data for the fit to start from "
+                "(e.g. no line on one channel that the other does not share)"
+            )
         # tr_solver="lsmr": the exact trust-region solver takes an SVD of the whole N × P
         # Jacobian every step (N ~ 20 000 rows: 40 % of a diagnosis); with P ≲ 20 LSMR solves
         # the same subproblem in a few products with J.
