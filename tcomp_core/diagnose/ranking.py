@@ -135,7 +135,7 @@ def is_significant(
         return True
     if candidate.raw_error_pct > (1.0 - MIN_RELATIVE_FALL) * current.raw_error_pct:
         return False
-    if _own_at_bound(candidate, current):
+    if _degenerate(candidate, current):
         return False
     if current.error_pct - candidate.error_pct < MIN_FALL_PER_FLOOR * current.noise_floor_pct:
         return False
@@ -163,10 +163,13 @@ def block_t(before: NDArray[np.float64], after: NDArray[np.float64]) -> float:
     return mean / (spread / math.sqrt(ratios.size))
 
 
-def _own_at_bound(candidate: ModelFit, current: ModelFit) -> bool:
-    """Whether the candidate put a parameter on a bound: one it adds, or τ (a degenerate fit).
+def _degenerate(candidate: ModelFit, current: ModelFit) -> bool:
+    """Whether the candidate's fit is degenerate: it put a parameter on a bound.
 
-    An earlier effect's parameter already on its bound does not count against the new one.
+    One it adds, or τ (a fit that sends τ to its bound has found no physical explanation). An
+    earlier effect's parameter, or a τ the current model already left on its bound, does not
+    count against the new one. (A jump of τ is no sign: a missing delay can send the base
+    model's τ1 to a tenth of the truth, and the delay brings it back.)
     """
     new = set(candidate.params) - set(current.params)
     moved = {"tau1", "tau2"} - set(current.at_bound)
@@ -313,9 +316,11 @@ def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
     if name == "radiation":
         return bool(max(p["rho1"], p["rho2"]) >= RADIATION_MIN_RHO)
     if name == "interference":
-        # The line must be there: one channel carries it beyond what the other explains.
+        # The line must be there: one channel carries it beyond what the other explains with
+        # the base model's τ (the candidate's own τ could make a gas harmonic look foreign).
         channel = int(p["interference_channel"])
-        line = find_line(*evaluator.readings, evaluator.data.dt, fit.tau1, fit.tau2, channel)
+        taus = evaluator.context.base_taus_s or (fit.tau1, fit.tau2)
+        line = find_line(*evaluator.readings, evaluator.data.dt, *taus, channel)
         return line is not None and any(
             abs(line[0] - h * p["interference_hz"]) <= max(1.0, 0.02 * line[0]) for h in HARMONICS
         )
