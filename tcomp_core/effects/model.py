@@ -559,7 +559,14 @@ class Model:
     def _log_factor_columns(
         self, context: FitContext, specs: Sequence[ParamSpec], rows: NDArray[np.bool_]
     ) -> dict[int, NDArray[np.float64]]:
-        """∂ log s/∂θ on the fitted rows for parameters that act only through s(t), by index."""
+        """∂ log s/∂θ on the fitted rows for parameters that act only through s(t), by index.
+
+        None with a level-dependent τ: its film temperature comes from the low-passed gas, so
+        residual k then depends on s at neighbouring samples too and the shortcut of
+        :class:`_Jacobian` would not hold (those columns are differenced instead).
+        """
+        if any(type(e).level_exponent is not Effect.level_exponent for e in self.instances):
+            return {}
         columns: dict[int, NDArray[np.float64]] = {}
         index = {spec.name: i for i, spec in enumerate(specs)}
         for effect in self.instances:
