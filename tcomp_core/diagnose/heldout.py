@@ -143,12 +143,17 @@ class Evaluator:
         """Fit ``model`` on the estimation blocks (``hold``: parameters kept as they are)."""
         return model.fit(*self._fit_inputs, self.data.training_rows, hold)
 
-    def training_error(self, model: Model) -> float:
-        """Raw free-run error of the slow sensor on the estimation blocks, % (no scores else)."""
+    def _free_run(self, model: Model) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The slow sensor's readings and its free-run simulation from the fast one."""
         readings = self.readings
         fast = 3 - self.slow
         measured = readings[self.slow - 1]
         predicted = model.simulate(readings[fast - 1], fast, float(measured[0]), self.context)
+        return measured, predicted
+
+    def training_error(self, model: Model) -> float:
+        """Raw free-run error of the slow sensor on the estimation blocks, % (no scores else)."""
+        measured, predicted = self._free_run(model)
         keep = ~self.data.validation & self.scored_mask(model)
         return heldout_error_percent(self.lowpass(measured), self.lowpass(predicted), keep)
 
@@ -191,11 +196,8 @@ class Evaluator:
         held = frozenset(n for e in chosen.instances for n in e.output_error_params)
         model = chosen.fit(*self._fit_inputs, hold=held)
         intervals, at_bound = parameter_uncertainty(model, *self._fit_inputs)
-        readings = self.readings
-        fast = 3 - self.slow
-        measured = readings[self.slow - 1]
-        predicted = model.simulate(readings[fast - 1], fast, float(measured[0]), self.context)
-        gas1, gas2 = model.reconstruct(*readings, self.context)
+        _, predicted = self._free_run(model)
+        gas1, gas2 = model.reconstruct(*self.readings, self.context)
         return replace(
             fit,
             params=dict(model.params),
@@ -223,10 +225,7 @@ class Evaluator:
 
     def evaluate(self, model: Model) -> ModelFit:
         """Simulate the slow sensor from the fast one and score it on the held-out blocks."""
-        readings = self.readings
-        fast = 3 - self.slow
-        measured = readings[self.slow - 1]
-        predicted = model.simulate(readings[fast - 1], fast, float(measured[0]), self.context)
+        measured, predicted = self._free_run(model)
         measured_f, predicted_f = self.lowpass(measured), self.lowpass(predicted)
         keep = self.scored_mask(model)
         held_out = self.data.validation & keep
@@ -241,7 +240,7 @@ class Evaluator:
                 heldout_error_percent(measured_f, predicted_f, mask) if scored else math.nan
             )
         noise = self.noise_variance(model)
-        gas1, gas2 = model.reconstruct(*readings, self.context)
+        gas1, gas2 = model.reconstruct(*self.readings, self.context)
         intervals, at_bound = parameter_uncertainty(
             model, *self._fit_inputs, self.data.training_rows
         )

@@ -121,12 +121,12 @@ def describe_unexplained(evaluator: Evaluator, fit: ModelFit) -> str:
     data = evaluator.data
     measured = evaluator.readings[evaluator.slow - 1]
     keep = evaluator.scored_mask(Model(fit.effects, fit.params))
-    residual = np.where(keep, measured - fit.predicted, 0.0)
+    residual = (measured - fit.predicted)[keep]
     marks = [
         _line(evaluator, fit),
-        _level(measured[keep], residual[keep]),
-        _nyquist(data.dt, residual[keep]),
-        _window(data.time[keep], residual[keep]),
+        _level(measured[keep], residual),
+        _nyquist(data.dt, residual),
+        _window(data.time[keep], residual),
     ]
     found = [mark for mark in marks if mark]
     head = (
