@@ -5,15 +5,17 @@
 ===================  ==============================================================================
 rig_sine_5khz        10 Hz sinusoid at 5 kHz, like the paper's test rig; first-order sensors
 ramp_500hz           the paper's periodic ramp (Fig. 3b) at 500 Hz; first-order sensors
-conduction_500hz     multisine at 500 Hz through sensors with conduction to the supports, an effect
-                     the first-order model lacks: G(s) = [1 + κ/(1 + τp s)] / (1 + κ + τ s)
+conduction_500hz     multisine at 500 Hz through junctions between fin legs whose supports lag the
+                     gas, an effect the first-order model lacks:
+                     G(s) = (1 − S)/(1 + τ s) + S/(1 + τp s), S = sech(mL √(1 + τ s))
 ===================  ==============================================================================
 
 Every bag holds /tc1/temperature, /tc2/temperature and the true gas temperature on
 /tref/temperature. The first two bags use the zero-order-hold simulation of tcomp_core; the
-conduction bag is simulated independently of the estimators' difference equation: the continuous
-transfer functions are integrated (scipy.signal.lsim) on a grid 20 times finer than the samples,
-with the gas temperature evaluated on that grid, and then decimated.
+conduction bag is simulated independently of the estimators' difference equation and of the
+effect library's filters, by :func:`tcomp_core.simulate_effects.simulate_effect` (the fin's
+transfer function as a cascade of 200 lags integrated on a grid 20 times finer than the samples,
+with the gas temperature evaluated on that grid, then decimated).
 """
 
 from __future__ import annotations
@@ -21,35 +23,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
-from scipy import signal
-
 from tcomp_core.io import write_bag
-from tcomp_core.simulate import PAPER_TAU1, PAPER_TAU2, add_noise, gas_signal, simulate_pair
+from tcomp_core.simulate import PAPER_TAU2, simulate_pair
+from tcomp_core.simulate_effects import simulate_effect
 
 TOPICS = ("/tc1/temperature", "/tc2/temperature", "/tref/temperature")
 #: Bag stamps start here (ns): an arbitrary but fixed wall-clock-like epoch.
 START_NS = 1_700_000_000 * 1_000_000_000
-#: Conduction to the supports per sensor. The thicker wire loses relatively more heat to its
-#: supports (larger κ); with equal κ the effect would cancel between the two sensors and only
-#: scale both τ by 1/(1 + κ), invisible in their relation.
-CONDUCTION = ({"kappa": 0.05, "tau_p": 1.0}, {"kappa": 0.25, "tau_p": 1.0})
-OVERSAMPLE = 20
-
-
-def conduction_response(
-    t: np.ndarray, gas: np.ndarray, tau: float, kappa: float, tau_p: float
-) -> np.ndarray:
-    """Continuous response of a sensor with conduction to its supports, from rest.
-
-    ``lsim`` interpolates the input linearly between grid points; the caller passes the
-    deviation from the initial gas temperature so that starting at rest means equilibrium.
-    """
-    # G(s) = (1 + κ + τp s) / ((1 + τp s)(1 + κ + τ s)): unity DC gain, slow mode τp.
-    numerator = [tau_p, 1.0 + kappa]
-    denominator = np.polymul([tau_p, 1.0], [tau, 1.0 + kappa])
-    _, response, _ = signal.lsim((numerator, denominator), gas, t)
-    return response
+#: Conduction: the legs' diffusion time L²/α (mL2 = 1.7 on the thicker wire, 3.8 on the thinner)
+#: and the supports' lag, s.
+CONDUCTION = {"tau_leg": 1.7**2 * PAPER_TAU2, "tau_p": 1.0}
 
 
 def rig_sine(out: Path) -> Path:
@@ -65,19 +48,17 @@ def ramp(out: Path) -> Path:
 
 
 def conduction(out: Path) -> Path:
-    """Multisine at 500 Hz through sensors with conduction to the supports, K = 1 %, 20 s."""
-    dt, duration = 0.002, 20.0
-    fine_t = np.arange(round(duration / dt) * OVERSAMPLE) * (dt / OVERSAMPLE)
-    gas_fine = gas_signal("multisine", fine_t)
-    start = gas_fine[0]
-    clean = [
-        start + conduction_response(fine_t, gas_fine - start, tau, **effect)
-        for tau, effect in zip((PAPER_TAU1, PAPER_TAU2), CONDUCTION, strict=True)
-    ]
-    sample = slice(None, None, OVERSAMPLE)
-    rng = np.random.default_rng(13)
-    tc1, tc2, _, _ = add_noise(clean[0][sample], clean[1][sample], 1.0, rng=rng)
-    return _write(out / "conduction_500hz", fine_t[sample], tc1, tc2, gas_fine[sample])
+    """Multisine at 500 Hz through junctions conducting to lagging supports, K = 1 %, 20 s."""
+    record = simulate_effect(
+        "conduction",
+        "multisine",
+        dt=0.002,
+        duration=20.0,
+        noise_percent=1.0,
+        seed=13,
+        params=CONDUCTION,
+    )
+    return _write(out / "conduction_500hz", record.time, record.tc1, record.tc2, record.gas)
 
 
 def _write(path: Path, time, tc1, tc2, gas) -> Path:

@@ -85,9 +85,8 @@ def random_params(effect, rng, tau1, tau2) -> dict[str, float]:
     def draw(low: float, high: float) -> float:
         return float(rng.uniform(low, high))
 
-    if effect == "conduction":
-        kappa1 = draw(0.03, 0.1)
-        return {"kappa1": kappa1, "kappa2": kappa1 * draw(3.0, 6.0), "tau_p": draw(0.5, 2.5)}
+    if effect == "conduction":  # mL of the slower wire's legs 1.3-2.3 (kappa2 0.2-0.9)
+        return {"tau_leg": max(tau1, tau2) * draw(1.3, 2.3) ** 2, "tau_p": draw(0.5, 2.5)}
     if effect == "radiation":
         r1 = draw(0.05, 0.15) / (4.0 * (RADIATION_MEAN_C + KELVIN) ** 3)
         return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": draw(150, 450)}

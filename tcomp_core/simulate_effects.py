@@ -21,7 +21,8 @@ Every sensor starts in equilibrium with the gas at t = 0. Noise follows
 =============  ===============================================================================
 effect         sensor i (τi dTi/dt = Tg − Ti unless stated)
 =============  ===============================================================================
-conduction     Gi(s) = [1 + κi/(1 + τp s)] / (1 + κi + τi s): slow mode τp, unity DC gain
+conduction     Gi(s) = (1 − Si)/(1 + τi s) + Si/(1 + τp s), Si = sech(mLi √(1 + τi s)),
+               mLi = √(tau_leg/τi): a junction between two fin legs on supports lagging τp
 radiation      τi dTi/dt = Tg − Ti − ri (Ti⁴ − Tw⁴), temperatures in kelvin in the law
 velocity       τi(t) = τi0 (v(t)/v0)^(−m),  v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)
 property       τi(t) = τi0 (Tf/T̄)^exponent, film Tf = (Ti + Tg)/2 and the gas mean T̄ in K
@@ -61,14 +62,17 @@ RADIATION_MEAN_C = 700.0
 RADIATION_AMPLITUDE_C = 250.0
 #: Radiative to convective conductance 4 r1 T̄³ of sensor 1 at ``RADIATION_MEAN_C``.
 RADIATION_RHO1 = 0.08
+#: mL of the slower wire's legs for ``conduction``.
+CONDUCTION_FIN_ML = 1.7
+#: Factors of the product S(s) = Π 1/((1 + a_n)(1 + τ_n s)) of sech simulated as lags.
+FIN_PRODUCT_TERMS = 200
 #: Phase of the velocity modulation at t = 0, rad: v(0) is not at a turning point.
 VELOCITY_PHASE = 0.3
 
 #: Allowed range of each effect parameter: lower bound, upper bound (always excluded), and
 #: whether the lower bound itself is allowed.
 _RANGES: dict[str, tuple[float, float, bool]] = {
-    "kappa1": (0.0, np.inf, True),
-    "kappa2": (0.0, np.inf, True),
+    "tau_leg": (0.0, np.inf, False),
     "tau_p": (0.0, np.inf, False),
     "r1": (0.0, np.inf, True),
     "r2": (0.0, np.inf, True),
@@ -160,7 +164,8 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
     Returns
     -------
     dict of str to float
-        ``conduction``: kappa1, kappa2 (dimensionless), tau_p (s).
+        ``conduction``: tau_leg (s; the legs' diffusion time L²/α, so mLi = √(tau_leg/τi)),
+        tau_p (s).
         ``radiation``: r1, r2 (K⁻³), wall_c (degrees C); 4 r1 T̄³ = 0.08 at T̄ = 700 °C and
         r2 = r1 (τ2/τ1)^(1/3), as a thicker wire radiates relatively more.
         ``velocity``: m (dimensionless), depth (dimensionless), period_s (s).
@@ -174,8 +179,8 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
     if effect is None:
         return {}
     if effect == "conduction":
-        # κ1/κ2 = τ1/τ2 roughly, as for wires of one material (see effects.conduction).
-        return {"kappa1": 0.05, "kappa2": 0.25, "tau_p": 1.0}
+        # mL2 = 1.7 on the slower wire (its supports pull it by sech(1.7) = 35 % at DC).
+        return {"tau_leg": CONDUCTION_FIN_ML**2 * max(tau1, tau2), "tau_p": 1.0}
     if effect == "radiation":
         r1 = RADIATION_RHO1 / (4.0 * (RADIATION_MEAN_C + KELVIN) ** 3)
         return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": 300.0}
@@ -265,12 +270,29 @@ def _first_order_tf(tau: float) -> tuple[list[float], NDArray[np.float64]]:
     return [1.0], np.array([tau, 1.0])
 
 
-def _conduction_tf(
-    tau: float, kappa: float, tau_p: float
-) -> tuple[list[float], NDArray[np.float64]]:
-    """G(s) = [1 + κ/(1 + τp s)] / (1 + κ + τ s) = (1 + κ + τp s) / ((1 + τp s)(1 + κ + τ s))."""
-    denominator = np.polymul([tau_p, 1.0], [tau, 1.0 + kappa])
-    return [tau_p, 1.0 + kappa], np.asarray(denominator, dtype=np.float64)
+def _fin_response(
+    gas: NDArray[np.float64], tau: float, tau_leg: float, tau_p: float, step: float
+) -> NDArray[np.float64]:
+    """A junction between two fin legs whose supports lag the gas, from equilibrium.
+
+    The wire obeys τ ∂T/∂t = ∂²T/∂x²/m² + Tg − T with the supports at Tg/(1 + τp s); at the
+    junction G(s) = (1 − S)/(1 + τ s) + S/(1 + τp s), S(s) = sech(mL √(1 + τ s)), mL =
+    √(tau_leg/τ). S is simulated as the Weierstrass product of cosh, Π 1/((1 + a_n)(1 + τ_n s))
+    with a_n = 4 (mL)²/((2n − 1)² π²) and τ_n = τ a_n/(1 + a_n): the first
+    :data:`FIN_PRODUCT_TERMS` factors as lags in cascade, all with their DC gain sech(mL).
+    """
+    fin_ml = np.sqrt(tau_leg / tau)
+    n = np.arange(1, FIN_PRODUCT_TERMS + 1)
+    a = 4.0 * fin_ml**2 / ((2 * n - 1) ** 2 * np.pi**2)
+    deviation = gas - gas[0]
+    pulled = deviation / np.cosh(fin_ml)
+    for lag in tau * a / (1.0 + a):
+        pulled = _lti_response([1.0], np.array([lag, 1.0]), pulled, step)
+    return (
+        gas[0]
+        + _lti_response([1.0], np.array([tau, 1.0]), deviation - pulled, step)
+        + _lti_response([1.0], np.array([tau_p, 1.0]), pulled, step)
+    )
 
 
 def _radiation_equilibrium(gas_k: float, r: float, wall_k: float) -> float:
@@ -484,14 +506,13 @@ def _simulate_clean(
     else:
         gas = gas2 = gas_signal(kind, t, **gas_params)
     if effect == "conduction":
-        models = [
-            _conduction_tf(tau, params[kappa], params["tau_p"])
-            for tau, kappa in zip(taus, ("kappa1", "kappa2"), strict=True)
-        ]
+        clean1, clean2 = (
+            _fin_response(series, tau, params["tau_leg"], params["tau_p"], step)[::oversample]
+            for series, tau in zip((gas, gas2), taus, strict=True)
+        )
     else:
-        models = [_first_order_tf(tau) for tau in taus]
-    clean1 = _lti_response(*models[0], gas, step)[::oversample]
-    clean2 = _lti_response(*models[1], gas2, step)[::oversample]
+        clean1 = _lti_response(*_first_order_tf(taus[0]), gas, step)[::oversample]
+        clean2 = _lti_response(*_first_order_tf(taus[1]), gas2, step)[::oversample]
     if effect == "calibration":
         clean2 = params["gain"] * clean2 + params["offset_c"]
     if effect == "interference":

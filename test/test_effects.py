@@ -22,7 +22,7 @@ TIME = np.arange(5000) * DT
 CHAINS = {
     "base": SensorChain(tau=0.1),
     "calibration": SensorChain(tau=0.1, gain=1.05, offset=-3.0),
-    "conduction": SensorChain(tau=0.1, kappa=0.25, tau_p=0.8, mode0=-3.0),
+    "conduction": SensorChain(tau=0.1, fin_ml=1.5, tau_p=0.8, mode0=-3.0),
     "velocity": SensorChain(tau=0.1, factor=1.0 + 0.3 * np.sin(2 * np.pi * TIME / 4.0)),
     "radiation": SensorChain(tau=0.1, r=0.05 / (4 * 1000.0**3), wall_k=600.0),
     "delay": SensorChain(tau=0.1, delay_s=0.0071),
@@ -32,7 +32,7 @@ CHAINS = {
         tau=0.1,
         gain=0.97,
         offset=2.0,
-        kappa=0.1,
+        fin_ml=2.5,
         tau_p=0.5,
         r=1e-11,
         wall_k=500.0,
@@ -99,8 +99,8 @@ def test_noise_ratio_fit_is_beta_gtls_with_phi(pair_factory):
 
 
 TRUE_PARAMS = {
-    # κ1/κ2 = τ1/τ2: the member of the conduction family the fit is held to (see conduction.py).
-    "conduction": {"kappa1": 0.3 * 0.0238 / 0.1168, "kappa2": 0.3, "tau_p": 0.7},
+    # Legs of one material and length: mL2 = 1.5, mL1 = 1.5 sqrt(τ2/τ1) (see conduction.py).
+    "conduction": {"tau_leg": 1.5**2 * 0.1168, "tau_p": 0.7},
     "radiation": {"rho1": 0.05, "rho2": 0.12, "wall_c": 300.0},
     "delay": {"delay_s": 0.009},
     "calibration": {"gain": 1.04, "offset_c": -5.0},

@@ -2,39 +2,54 @@
 
 import numpy as np
 import pytest
-from scipy import signal
 
-from tcomp_core.effects.chain import (
-    SHIFT_HALF_TAPS,
-    _steady_filter,
-    bilinear_first_order,
-    fractional_shift,
+from tcomp_core.effects.chain import SHIFT_HALF_TAPS, _fin_filters, fractional_shift
+from tcomp_core.effects.conduction import FIN_TERMS, fin_filter, fin_kappa, fin_length
+
+
+def _evaluate(zeros_poles, s):
+    zeros, poles = zeros_poles
+    return np.prod(s[:, None] - zeros, axis=1) / np.prod(s[:, None] - poles, axis=1)
+
+
+@pytest.mark.parametrize(
+    ("fin_ml", "tau", "tau_p"), [(0.5, 0.1, 2.0), (1.8, 0.02, 1.0), (4.0, 0.2, 5.0)]
 )
+def test_fin_filter_is_the_fin_transfer_function(fin_ml, tau, tau_p):
+    # M(s) = 1 - (tau_p - tau) s sech(mL sqrt(1 + tau s)) / (1 + tau_p s) and its inverse.
+    s = 2j * np.pi * np.geomspace(1e-3, 10.0, 40) / tau
+    exact = 1 - (tau_p - tau) * s / np.cosh(fin_ml * np.sqrt(1 + tau * s)) / (1 + tau_p * s)
+    zeros, poles = fin_filter(tau, fin_ml, tau_p, FIN_TERMS)
+    error = np.abs(_evaluate((zeros, poles), s) - exact)
+    assert np.max(error[np.abs(s) * tau <= 2 * np.pi]) < 5e-3
+    assert np.max(error) < 1e-2
+    assert np.all(zeros.real < 0)  # minimum phase: M inverts stably
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_equals_scipy_bilinear(seed):
-    rng = np.random.default_rng(seed)
-    numerator = tuple(rng.uniform(0.001, 5.0, 2))
-    denominator = tuple(rng.uniform(0.001, 5.0, 2))
-    fs = float(rng.uniform(50.0, 50_000.0))
-    expected_b, expected_a = signal.bilinear(list(numerator), list(denominator), fs)
-    b, a = bilinear_first_order(numerator, denominator, fs)
-    assert np.allclose(b, expected_b, rtol=1e-12, atol=1e-15)
-    assert np.allclose(a, expected_a, rtol=1e-12, atol=1e-15)
+@pytest.mark.parametrize("fin_ml", [0.5, 2.0])
+def test_fin_filters_in_discrete_time_invert_each_other_from_a_steady_start(fin_ml):
+    rng = np.random.default_rng(3)
+    dt = 0.002
+    values = 300.0 + np.cumsum(rng.standard_normal(4000))
+    forward, inverse = _fin_filters(0.05, fin_ml, 1.5, dt)
+    assert np.allclose(inverse(forward(values)), values, rtol=0, atol=1e-8)
+    assert np.allclose(forward(np.full(50, 300.0)), 300.0, rtol=0, atol=1e-9)  # steady
+    # The bilinear filter follows M(j w) at a tenth of the sample rate.
+    tone = np.sin(2 * np.pi * 50.0 * dt * np.arange(4000))
+    out = forward(tone)[2000:]
+    warped = np.tan(np.pi * 50.0 * dt) / (np.pi * 50.0 * dt)  # bilinear frequency warping
+    s = np.array([2j * np.pi * 50.0 * warped])
+    expected = _evaluate(fin_filter(0.05, fin_ml, 1.5), s)[0]
+    assert np.std(out) * np.sqrt(2) == pytest.approx(abs(expected), rel=2e-3)
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_steady_filter_equals_lfilter_from_lfilter_zi(seed):
-    rng = np.random.default_rng(seed)
-    b, a = bilinear_first_order(
-        tuple(rng.uniform(0.01, 2.0, 2)), tuple(rng.uniform(0.01, 2.0, 2)), 500.0
-    )
-    values = 20.0 + np.cumsum(rng.standard_normal(300))
-    excess = float(rng.normal())
-    zi = signal.lfilter_zi(b, a) * values[0] + excess
-    expected = signal.lfilter(b, a, values, zi=zi)[0]
-    assert np.allclose(_steady_filter(b, a, values, excess), expected, rtol=1e-12, atol=1e-9)
+def test_fin_kappa_and_length_are_inverse_and_match_the_steady_fin():
+    for fin_ml in (0.3, 1.0, 2.5, 6.0):
+        kappa = fin_kappa(fin_ml)
+        assert fin_length(kappa) == pytest.approx(fin_ml, rel=1e-12)
+        # Steady junction of the lumped model, 1/(1 + kappa), is 1 - sech(mL) of the fin.
+        assert 1.0 / (1.0 + kappa) == pytest.approx(1.0 - 1.0 / np.cosh(fin_ml), rel=1e-12)
+    assert fin_length(0.0) == np.inf and fin_kappa(np.inf) == 0.0
 
 
 @pytest.mark.parametrize("shift", [-17.3, -2.5, 0.0, 0.25, 3.75, 40.0])

@@ -12,7 +12,7 @@ PARAMS = {
     "radiation": {"rho1": 0.04, "rho2": 0.07, "wall_c": 150.0},
     "calibration": {"gain": 1.02, "offset_c": -0.5},
     "delay": {"delay_s": 0.003},
-    "conduction": {"kappa1": 0.05, "kappa2": 0.2, "tau_p": 0.8, "mode1": 0.1, "mode2": -0.2},
+    "conduction": {"tau_leg": 0.3, "tau_p": 0.8, "mode1": 0.1, "mode2": -0.2},
 }
 
 

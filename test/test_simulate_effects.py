@@ -14,7 +14,7 @@ from tcomp_core.simulate_effects import (
     EFFECT_NAMES,
     KELVIN,
     VELOCITY_PHASE,
-    _conduction_tf,
+    _fin_response,
     _lti_response,
     _velocity_factor,
     default_effect_params,
@@ -57,39 +57,41 @@ def test_plain_sensors_reach_the_analytic_steady_state_sinusoid():
 def test_linear_response_matches_lsim():
     step, gas = 1e-4, gas_signal("multisine", np.arange(5001) * 1e-4)
     time = np.arange(gas.size) * step
-    numerator, denominator = _conduction_tf(0.1168, 0.25, 1.0)
+    # A lag with a slow mode: (1 + 1.25 s) / ((1 + s)(1 + 0.1168 s)).
+    numerator, denominator = np.array([1.25, 1.0]), np.polymul([1.0, 1.0], [0.1168, 1.0])
     _, expected, _ = signal.lsim((numerator, denominator), gas - gas[0], time)
     response = _lti_response(numerator, denominator, gas, step)
     assert np.max(np.abs(response - gas[0] - expected)) < 1e-8 * np.ptp(gas)
 
 
-@pytest.mark.parametrize(("tau", "kappa"), [(0.0238, 0.05), (0.1168, 0.25)])
-def test_conduction_step_response(tau, kappa):
-    step = 1e-4
-    time = np.arange(100_001) * step
-    gas = np.ones_like(time)
-    gas[0] = 0.0  # the step rises linearly over the first interval, i.e. half a step late
-    numerator, denominator = _conduction_tf(tau, kappa, 1.0)
-    response = _lti_response(numerator, denominator, gas, step)
-    # The analytic step response at t_k - step/2 over the first 0.5 s (lsim loops in Python).
-    _, analytic = signal.step((numerator, denominator), T=np.arange(10_002) * step / 2)
-    assert np.max(np.abs(response[1:5002] - analytic[1::2])) < 1e-5
-    # Unity DC gain: after ten slow time constants the step has arrived.
-    assert abs(response[-1] - 1.0) < 1e-4
-    # The slow mode: at 3τ a first-order lag is at 1 - e^-3, this sensor lacks about κ/(1+κ).
-    deficit = (1.0 - np.exp(-3.0)) - response[round(3 * tau / step)]
-    assert 0.5 < deficit / (kappa / (1.0 + kappa)) < 1.0
+@pytest.mark.parametrize(("tau", "tau_leg"), [(0.0238, 0.1), (0.1168, 0.3)])
+def test_fin_response_follows_the_fin_transfer_function(tau, tau_leg):
+    # G(s) = (1 - S)/(1 + tau s) + S/(1 + tau_p s), S = sech(mL sqrt(1 + tau s)): the steady
+    # sinusoid's amplitude and phase, and unity DC gain.
+    step, tau_p = 1e-4, 1.0
+    time = np.arange(120_001) * step
+    for hz in (0.5, 5.0):
+        gas = np.sin(2 * np.pi * hz * time)
+        response = _fin_response(gas, tau, tau_leg, tau_p, step)
+        s = 2j * np.pi * hz
+        pull = 1 / np.cosh(np.sqrt(tau_leg / tau) * np.sqrt(1 + tau * s))
+        gain = (1 - pull) / (1 + tau * s) + pull / (1 + tau_p * s)
+        expected = np.imag(gain * np.exp(2j * np.pi * hz * time))
+        settled = time > 8.0 * tau_p
+        assert np.max(np.abs(response - expected)[settled]) < 2e-3 * abs(gain)
+    assert _fin_response(np.full(1000, 3.0), tau, tau_leg, tau_p, step)[-1] == pytest.approx(3.0)
 
 
 def test_conduction_record_lags_plain_sensors_and_reduces_to_them_without_conduction():
     plain = clean(None, "multisine", duration=4.0)
     conducting = clean("conduction", "multisine", duration=4.0)
-    same = clean("conduction", "multisine", duration=4.0, params={"kappa1": 0.0, "kappa2": 0.0})
+    legs = {"tau_leg": 1e4, "tau_p": 1.0}  # legs ~300 mL long: the supports pull by ~e^-300
+    same = clean("conduction", "multisine", duration=4.0, params=legs)
     np.testing.assert_allclose(same.clean1, plain.clean1, atol=1e-9)
     np.testing.assert_allclose(same.clean2, plain.clean2, atol=1e-9)
     # The slow mode holds back a visible part of the response: far above 1 % noise.
     assert np.std(conducting.clean2 - plain.clean2) > 0.1 * np.std(plain.clean2)
-    assert conducting.params == {"kappa1": 0.05, "kappa2": 0.25, "tau_p": 1.0}
+    assert conducting.params == {"tau_leg": 1.7**2 * conducting.tau2, "tau_p": 1.0}
 
 
 def test_radiation_steady_state_solves_the_balance_and_reads_low():

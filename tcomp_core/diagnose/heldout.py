@@ -32,7 +32,7 @@ from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
 from .prepare import PreparedData
 from .result import ModelFit
-from .uncertainty import parameter_uncertainty
+from .uncertainty import parameter_uncertainty, parameters_at_bound
 
 __all__ = ["Evaluator", "heldout_error_percent"]
 
@@ -213,7 +213,7 @@ class Evaluator:
     def scored_mask(self, model: Model) -> NDArray[np.bool_]:
         """Samples that count in the error: all but the start-up transient and delay edges."""
         n = self.data.time.size
-        tau = model.params[f"tau{self.slow}"] * (1.0 + model.params.get(f"kappa{self.slow}", 0.0))
+        tau = model.params[f"tau{self.slow}"]
         skip = min(n // 10, math.ceil(TRANSIENT_TAUS * tau / self.data.dt))
         edge = (
             math.ceil(abs(model.params.get("delay_s", 0.0)) / self.data.dt) + SHIFT_HALF_TAPS + 1
@@ -223,8 +223,13 @@ class Evaluator:
         keep[n - edge :] = False
         return keep
 
-    def evaluate(self, model: Model) -> ModelFit:
-        """Simulate the slow sensor from the fast one and score it on the held-out blocks."""
+    def evaluate(self, model: Model, intervals: bool = False) -> ModelFit:
+        """Simulate the slow sensor from the fast one and score it on the held-out blocks.
+
+        With ``intervals`` the fit carries its parameters' 95 % intervals (a Jacobian of the
+        whole criterion; only the staircase's steps need them, see :meth:`with_intervals`);
+        the parameters on a bound are always flagged.
+        """
         measured, predicted = self._free_run(model)
         measured_f, predicted_f = self.lowpass(measured), self.lowpass(predicted)
         keep = self.scored_mask(model)
@@ -241,9 +246,13 @@ class Evaluator:
             )
         noise = self.noise_variance(model)
         gas1, gas2 = model.reconstruct(*self.readings, self.context)
-        intervals, at_bound = parameter_uncertainty(
-            model, *self._fit_inputs, self.data.training_rows
-        )
+        if intervals:
+            bounds_95, at_bound = parameter_uncertainty(
+                model, *self._fit_inputs, self.data.training_rows
+            )
+        else:
+            bounds_95 = {}
+            at_bound = parameters_at_bound(model, *self._fit_inputs, self.data.training_rows)
         return ModelFit(
             effects=model.effects,
             params=dict(model.params),
@@ -260,6 +269,15 @@ class Evaluator:
             gas1=_pad(gas1),
             gas2=_pad(gas2),
             n_params=model.n_params(self.context),
-            intervals=intervals,
+            intervals=bounds_95,
             at_bound=at_bound,
         )
+
+    def with_intervals(self, fit: ModelFit) -> ModelFit:
+        """``fit`` with the 95 % intervals of its parameters (fitted on the estimation blocks)."""
+        if fit.intervals:
+            return fit
+        intervals, at_bound = parameter_uncertainty(
+            Model(fit.effects, fit.params), *self._fit_inputs, self.data.training_rows
+        )
+        return replace(fit, intervals=intervals, at_bound=at_bound)

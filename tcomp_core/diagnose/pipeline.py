@@ -92,7 +92,7 @@ def _evaluator(data: PreparedData, taus: dict[str, float]) -> Evaluator:
 
 def _fit_base(evaluator: Evaluator, taus: dict[str, float]) -> tuple[Model, ModelFit]:
     model = evaluator.fit(Model(params=taus))
-    return model, evaluator.evaluate(model)
+    return model, evaluator.evaluate(model, intervals=True)
 
 
 def _failure(evaluator: Evaluator, fit: ModelFit) -> FailureAnalysis:
@@ -187,11 +187,22 @@ def _staircase(
             break
         if is_expected_physics(chosen, evaluator):
             expected.append(chosen.effect)
-        fit = chosen.fit
+        fit = evaluator.with_intervals(chosen.fit)
         model = Model(fit.effects, fit.params)
         steps.append(fit)
         remaining.remove(chosen.effect)
     return steps, rounds, expected
+
+
+#: Why each effect that can be added as ordinary physics is not a finding.
+ORDINARY = {
+    "property": "time constants vary a little with the level through the gas properties, as "
+    "for any real wire",
+    "calibration": "a relative calibration within the tolerance of special-limits type K "
+    "thermocouples, or the few hundredths of a degree by which the sensors' nonlinear "
+    "response rectifies a large swing",
+    "radiation": "a radiative loss too small to bias the gas temperature noticeably",
+}
 
 
 def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) -> Diagnosis:
@@ -203,8 +214,7 @@ def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) ->
     ]
     for name in expected:
         notes.append(
-            f"{name}: added as the sensors' ordinary physics, not a finding (time constants "
-            "vary a little with the level through the gas properties, as for any real wire)"
+            f"{name}: added as the sensors' ordinary physics, not a finding ({ORDINARY[name]})"
         )
     return Diagnosis(
         source=data.source,
@@ -315,7 +325,7 @@ def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
                 fit=fit,
             )
         )
-        steps.append(fit)
+        steps.append(evaluator.with_intervals(fit))
     steps[-1] = evaluator.refit_whole(steps[-1])
     verdict = effects[-1] if effects else "none"
     return _diagnosis(evaluator, steps[0], failure, steps, [suspects] if suspects else [], verdict)

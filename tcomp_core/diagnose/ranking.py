@@ -17,9 +17,15 @@ An effect is *significant* when its refit
 * is material (:func:`is_material`): a calibration difference the fit can resolve (gain off by
   :data:`CALIBRATION_MIN_GAIN` or a difference of :data:`CALIBRATION_MIN_OFFSET_C` at the mean
   level), a radiative conductance of :data:`RADIATION_MIN_RHO` on the wire that radiates more,
-  an interference line that one channel carries beyond what the other explains.
+  an interference line that one channel carries beyond what the other explains, a delay of
+  at least :data:`DELAY_MIN_SAMPLES` of a sample (a delay fitted at zero is no delay: its fall
+  came from the restarts of τ that the delay's search makes).
   Rectification by the sensors' nonlinear physics (τ following the level) leaves the two
-  sensors' means a few hundredths of a degree apart, which is no calibration error.
+  sensors' means a few hundredths of a degree apart, which is no calibration error. A
+  calibration or radiation that passes the statistical rules but is not material is still
+  added to the model when it fits best, as the sensors' ordinary physics (within the
+  tolerance of special-limits type K, ±0.4 %; a radiative loss too small to matter), never as
+  the verdict: an effect that explains the residual less well must then beat it.
 
 Unequal noise (``noise_ratio``) is measured rather than fitted, so a clearly unequal noise
 ratio counts by itself when the refit does no harm (:func:`is_significant`).
@@ -85,6 +91,9 @@ MIN_FALL_PER_FLOOR = 0.5
 #: with ~10 blocks. An effect confined to part of the record (a slow mode charging at the start)
 #: improves few blocks a lot and the rest a little, so the bar cannot be high.
 MIN_BLOCK_T = 2.0
+#: A τ that a candidate leaves on its bound counts against it when the current model had it
+#: more than this factor away.
+DRIVEN_FACTOR = 3.0
 #: Suspects within this relative error of each other count as a tie.
 TIE_TOLERANCE = 0.03
 #: Noise variance ratio φ̂ beyond which (or below its inverse) unequal noise is a finding by
@@ -105,6 +114,8 @@ RADIATION_MIN_RHO = 0.01
 #: asks gain within ±0.5 % and offset within ±0.2 degC).
 CALIBRATION_MIN_GAIN = 0.005
 CALIBRATION_MIN_OFFSET_C = 0.2
+#: Least delay that counts, in samples of the working rate.
+DELAY_MIN_SAMPLES = 0.5
 #: Least relative change of τ over the film temperature's range (5th to 95th percentile; the
 #: film is the mean of the fast sensor's reading and its reconstructed gas) at which a
 #: level-dependent τ is a finding (``property`` verdict) rather than the gas-property physics
@@ -114,6 +125,9 @@ PROPERTY_FINDING_SWING = 0.08
 #: A significant ``property`` of ordinary size ranks first when its error is within this share
 #: of the best suspect's.
 EXPECTED_PHYSICS_TIE = 0.10
+#: Effects that, fitted below materiality, are taken as the sensors' ordinary physics
+#: (:func:`is_expected_physics`) rather than discarded.
+ORDINARY_WHEN_SMALL = ("calibration", "radiation")
 
 
 def is_significant(
@@ -166,14 +180,22 @@ def block_t(before: NDArray[np.float64], after: NDArray[np.float64]) -> float:
 def _degenerate(candidate: ModelFit, current: ModelFit) -> bool:
     """Whether the candidate's fit is degenerate: it put a parameter on a bound.
 
-    One it adds, or τ (a fit that sends τ to its bound has found no physical explanation). An
-    earlier effect's parameter, or a τ the current model already left on its bound, does not
-    count against the new one. (A jump of τ is no sign: a missing delay can send the base
-    model's τ1 to a tenth of the truth, and the delay brings it back.)
+    One it adds, or τ driven there from more than :data:`DRIVEN_FACTOR` away (a fit that sends
+    τ to its bound has found no physical explanation). An earlier effect's parameter, or a τ the
+    current model already left on or near its bound (a missing delay can collapse the base
+    model's τ1 to a few hundredths of a millisecond), does not count against the new one. (A
+    jump of τ is no sign: a missing delay can send the base model's τ1 to a tenth of the truth,
+    and the delay brings it back.)
     """
     new = set(candidate.params) - set(current.params)
-    moved = {"tau1", "tau2"} - set(current.at_bound)
-    return any(name in new or name in moved for name in candidate.at_bound)
+
+    def driven(name: str) -> bool:
+        if name not in ("tau1", "tau2") or name in current.at_bound:
+            return False
+        ratio = current.params[name] / candidate.params[name]
+        return max(ratio, 1.0 / ratio) > DRIVEN_FACTOR
+
+    return any(name in new or driven(name) for name in candidate.at_bound)
 
 
 def rank(suspects: Sequence[Suspect]) -> list[Suspect]:
@@ -219,7 +241,7 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
             if effect.output_error_params:
                 fitted = _output_error_fit(evaluator, start, effect.output_error_params)
             else:
-                fitted = evaluator.fit(start)
+                fitted = evaluator.fit(start, hold=_output_error_held(model))
         except (TcompError, ValueError, np.linalg.LinAlgError) as exc:
             failure = exc
             continue
@@ -232,41 +254,73 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
     return best
 
 
-#: Rounds of the output-error search (a 1-D search with the rest held, then a refit of the
-#: rest), and the half width of the second round's bracket around the first's result.
-OUTPUT_ERROR_ROUNDS = 2
-OUTPUT_ERROR_REFINE = 0.3
+#: Points of the output-error grid over a parameter's bounds (log-spaced for time constants),
+#: then the refinement between the best point's neighbours: tolerance (in the search
+#: coordinate, the logarithm for a time constant) and most evaluations.
+OUTPUT_ERROR_GRID = 5
+OUTPUT_ERROR_XATOL = 0.02
+OUTPUT_ERROR_ITERATIONS = 8
 
 
 def _output_error_fit(evaluator: Evaluator, model: Model, names: Sequence[str]) -> Model:
     """Fit ``model`` with ``names`` chosen by the free-run error on the estimation blocks.
 
-    Each round searches every one of ``names`` in turn over its bounds (bounded Brent, the
-    other parameters held), then refits the rest by the cross-relation with ``names`` held.
+    Each of ``names`` in turn: a grid of :data:`OUTPUT_ERROR_GRID` values over its bounds
+    (log-spaced for a time constant), the other parameters fitted by the cross-relation at each
+    (from their own starts: a start carried from a neighbour can sit in a poor basin), then a
+    bounded Brent search between the best point's neighbours, the others refitted from the best
+    point's fit at every trial (they move with the parameter: conduction's supports and τ with
+    the legs' length); the fit with the lowest free-run error is kept. Parameters of the
+    model's earlier effects that were chosen this way keep their values.
     """
-    held = frozenset(names)
+    held = frozenset(names) | _output_error_held(model)
     specs = {spec.name: spec for spec in model.specs(evaluator.context)}
-    params = dict(model.params)
+    current = model
     for name in names:
-        params.setdefault(name, 0.5 * (specs[name].lower + specs[name].upper))
-    current = evaluator.fit(Model(model.effects, params), hold=held)
-    for round_ in range(OUTPUT_ERROR_ROUNDS):
-        for name in names:
-            low, high = specs[name].lower, specs[name].upper
-            if round_:
-                value = current.params[name]
-                low = max(low, value - OUTPUT_ERROR_REFINE)
-                high = min(high, value + OUTPUT_ERROR_REFINE)
-
-            def error(value: float, name: str = name, at: Model = current) -> float:
-                return evaluator.training_error(Model(at.effects, {**at.params, name: value}))
-
-            found = optimize.minimize_scalar(
-                error, bounds=(low, high), method="bounded", options={"xatol": 0.01}
+        spec = specs[name]
+        log = name.startswith("tau")
+        grid = (
+            np.geomspace(spec.lower, spec.upper, OUTPUT_ERROR_GRID + 2)[1:-1]
+            if log
+            else np.linspace(spec.lower, spec.upper, OUTPUT_ERROR_GRID + 2)[1:-1]
+        )
+        fits, errors = [], []
+        for value in grid:
+            fitted = evaluator.fit(
+                Model(current.effects, {**current.params, name: float(value)}), hold=held
             )
-            params = {**current.params, name: float(found.x)}
-        current = evaluator.fit(Model(current.effects, params), hold=held)
+            fits.append(fitted)
+            errors.append(evaluator.training_error(fitted))
+        best = int(np.argmin(errors))
+        low = grid[best - 1] if best > 0 else spec.lower
+        high = grid[best + 1] if best + 1 < grid.size else spec.upper
+        at = fits[best]
+        trials: list[tuple[float, Model]] = [(errors[best], at)]
+
+        def error(
+            x: float, name: str = name, at: Model = at, log: bool = log, trials=trials
+        ) -> float:
+            value = math.exp(x) if log else x
+            fitted = evaluator.fit(Model(at.effects, {**at.params, name: value}), hold=held)
+            trials.append((evaluator.training_error(fitted), fitted))
+            return trials[-1][0]
+
+        bracket = (math.log(low), math.log(high)) if log else (low, high)
+        optimize.minimize_scalar(
+            error,
+            bounds=bracket,
+            method="bounded",
+            options={"xatol": OUTPUT_ERROR_XATOL, "maxiter": OUTPUT_ERROR_ITERATIONS},
+        )
+        current = min(trials, key=lambda trial: trial[0])[1]
     return current
+
+
+def _output_error_held(model: Model) -> frozenset[str]:
+    """Parameters of ``model``'s effects chosen by the output error: held when others join."""
+    return frozenset(
+        n for e in model.instances for n in e.output_error_params if n in model.params
+    )
 
 
 def next_round(
@@ -296,7 +350,7 @@ def next_round(
                 evidence=evidence,
                 signature=signature(name, evaluator, current, fit),
                 significant=is_significant(current, fit, name, evaluator.data.phi_hat)
-                and is_material(name, fit, evaluator),
+                and (name in ORDINARY_WHEN_SMALL or is_material(name, fit, evaluator)),
                 fit=fit,
             )
         )
@@ -315,6 +369,8 @@ def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
         )
     if name == "radiation":
         return bool(max(p["rho1"], p["rho2"]) >= RADIATION_MIN_RHO)
+    if name == "delay":
+        return bool(abs(p["delay_s"]) >= DELAY_MIN_SAMPLES * evaluator.data.dt)
     if name == "interference":
         # The line must be there: one channel carries it beyond what the other explains with
         # the base model's τ (the candidate's own τ could make a gas harmonic look foreign).
@@ -328,8 +384,16 @@ def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
 
 
 def is_expected_physics(suspect: Suspect, evaluator: Evaluator) -> bool:
-    """Whether a suspect is the ordinary gas-property dependence of τ (see the module notes)."""
-    if suspect.effect != "property" or suspect.fit is None:
+    """Whether a suspect is the sensors' ordinary physics, not a finding (see the module notes).
+
+    The gas-property dependence of τ of ordinary size, and a calibration or radiation below
+    materiality.
+    """
+    if suspect.fit is None:
+        return False
+    if suspect.effect in ORDINARY_WHEN_SMALL:
+        return not is_material(suspect.effect, suspect.fit, evaluator)
+    if suspect.effect != "property":
         return False
     # The film temperature spans half the way from the junction to the gas: the mean of the
     # fast sensor's reading and its reconstructed gas (low-passed like the comparison).
@@ -347,6 +411,7 @@ def _expected_physics_first(ranked: list[Suspect], evaluator: Evaluator) -> list
     for i, suspect in enumerate(ranked):
         if (
             suspect.significant
+            and suspect.effect == "property"
             and is_expected_physics(suspect, evaluator)
             and suspect.error_pct <= (1.0 + EXPECTED_PHYSICS_TIE) * ranked[0].error_pct
         ):

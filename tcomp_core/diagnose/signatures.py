@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from ..effects import Model
 from ..effects.base import KELVIN
+from ..effects.conduction import Conduction, fin_kappa
 from .heldout import Evaluator
 from .residuals import band_errors
 from .result import ModelFit
@@ -58,8 +59,10 @@ def _conduction(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
         )
     else:
         evidence = "the residual is slow, the mark of a slow mode"
+    ml1, ml2 = Conduction.fin_ml(1, p), Conduction.fin_ml(2, p)
     return (
-        f"{evidence}; refit: kappa1 = {p['kappa1']:.3g}, kappa2 = {p['kappa2']:.3g}, "
+        f"{evidence}; refit: legs' diffusion time {p['tau_leg']:.3g} s (mL1 = {ml1:.3g}, "
+        f"mL2 = {ml2:.3g}: kappa1 = {fin_kappa(ml1):.3g}, kappa2 = {fin_kappa(ml2):.3g}), "
         f"tau_p = {p['tau_p']:.3g} s"
     )
 

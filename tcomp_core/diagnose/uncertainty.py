@@ -26,8 +26,9 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from ..effects import FitContext, Model
+from ..effects.model import LeastSquaresProblem
 
-__all__ = ["Z95", "parameter_uncertainty"]
+__all__ = ["Z95", "parameter_uncertainty", "parameters_at_bound"]
 
 #: Two-sided 95 % quantile of the normal distribution.
 Z95 = 1.959963984540054
@@ -52,6 +53,33 @@ def _meat(jacobian: NDArray[np.float64], residuals: NDArray[np.float64]) -> NDAr
         weights[-1] = 1.0
     weighted = transform * (weights * spectrum)[:, None]
     return np.real(transform.conj().T @ weighted) / n
+
+
+def _at_bound(problem: LeastSquaresProblem, x: NDArray[np.float64]) -> tuple[str, ...]:
+    """Names of the parameters within :data:`AT_BOUND_SHARE` of their range from a bound."""
+    span = problem.upper - problem.lower
+    return tuple(
+        spec.name
+        for spec, value, low, high, width in zip(
+            problem.specs, x, problem.lower, problem.upper, span, strict=True
+        )
+        if min(value - low, high - value) <= AT_BOUND_SHARE * width
+    )
+
+
+def parameters_at_bound(
+    model: Model,
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    context: FitContext,
+    rows: NDArray[np.bool_] | None = None,
+) -> tuple[str, ...]:
+    """The fitted parameters on a bound of their range; cheap (no Jacobian).
+
+    Arguments as :func:`parameter_uncertainty`'s.
+    """
+    problem = model.problem(tc1, tc2, context, rows)
+    return _at_bound(problem, np.clip(problem.pack(model.params), problem.lower, problem.upper))
 
 
 def parameter_uncertainty(
@@ -83,14 +111,7 @@ def parameter_uncertainty(
     """
     problem = model.problem(tc1, tc2, context, rows)
     x = np.clip(problem.pack(model.params), problem.lower, problem.upper)
-    span = problem.upper - problem.lower
-    at_bound = tuple(
-        spec.name
-        for spec, value, low, high, width in zip(
-            problem.specs, x, problem.lower, problem.upper, span, strict=True
-        )
-        if min(value - low, high - value) <= AT_BOUND_SHARE * width
-    )
+    at_bound = _at_bound(problem, x)
     residuals = problem.residuals(x)
     jacobian = problem.jacobian(x)
     n = problem.n_rows

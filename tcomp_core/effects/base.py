@@ -119,6 +119,9 @@ class Effect:
     #: each, the other parameters fitted by the cross-relation in between (see
     #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`).
     output_error_params: ClassVar[tuple[str, ...]] = ()
+    #: Whether the effect's chain depends on the sample times (``FitContext.time``), so that it
+    #: cannot be fitted on a stretch of the record alone.
+    uses_sample_times: ClassVar[bool] = False
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         """The effect's fitted parameters and their bounds for this record."""
@@ -166,7 +169,7 @@ class Effect:
     def conduction(
         self, sensor: int, params: Mapping[str, float]
     ) -> tuple[float, float, float] | None:
-        """``(kappa, tau_p_s, mode0_c)`` of conduction to the supports, or None."""
+        """``(fin_ml, tau_p_s, mode0_c)`` of conduction to the supports, or None."""
         return None
 
     def tau_factor(

@@ -8,8 +8,9 @@ whose inverse gives the gas temperature u[k] held over [t_k, t_k+1) from two rea
 effects wrap it (see :mod:`tcomp_core.effects.base`):
 
 * calibration: the sensor reads ``gain T + offset``;
-* conduction: G = F⁻¹ L with F(s) = (1 + τp s)/(1 + κ + τp s) (bilinear) and L a first-order lag
-  of time constant τ/(1 + κ) and DC gain 1/(1 + κ);
+* conduction: G = M L with L the first-order lag and M the legs' fin filter
+  (:mod:`tcomp_core.effects.conduction`; bilinear, second-order sections), plus
+  the supports' initial excess ``mode0`` e^(−t/τp) on the reading;
 * velocity: τ_k = τ s(t_k);
 * radiation: the lag is driven by u − r (T⁴ − T_w⁴), the loss taken at T[k] so that the forward
   recurrence stays explicit and is the exact inverse of the backward one;
@@ -22,6 +23,7 @@ the interpolation of a delay), so a model simulated forward and inverted again r
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -30,17 +32,14 @@ from numpy.typing import NDArray
 from scipy import signal
 
 from .base import KELVIN
+from .conduction import fin_filter
 
 __all__ = [
     "SensorChain",
-    "bilinear_first_order",
     "fractional_shift",
     "gas_from_reading",
     "reading_from_gas",
 ]
-
-#: Numerator and denominator ``(b, a)`` of a digital filter, as :func:`scipy.signal.lfilter` takes.
-FilterCoefficients = tuple[NDArray[np.float64], NDArray[np.float64]]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,11 +52,12 @@ class SensorChain:
         Convective time constant, s.
     gain, offset : float
         The sensor reads ``gain * T + offset`` (degrees C).
-    kappa, tau_p : float
-        Conduction ratio and slow-mode time constant (s); ``kappa = 0`` means none.
+    fin_ml, tau_p : float
+        mL of the legs (fin theory) and time constant of the supports' lag (s); an infinite
+        ``fin_ml`` (legs without end) means no conduction.
     mode0 : float
-        Excess of the slow mode at sample 0 over its equilibrium with the first reading,
-        degrees C: a record that does not start at rest starts with the mode charged.
+        The supports' excess over their equilibrium at sample 0 as the reading sees it,
+        degrees C, decaying with τp: a record that does not start at rest starts with it.
     factor : ndarray, shape (N,), or None
         Per-sample factor on τ (velocity), or None for a constant τ.
     level_exponent, level_ref_k : float
@@ -78,7 +78,7 @@ class SensorChain:
     tau: float
     gain: float = 1.0
     offset: float = 0.0
-    kappa: float = 0.0
+    fin_ml: float = math.inf
     tau_p: float = 1.0
     mode0: float = 0.0
     factor: NDArray[np.float64] | None = None
@@ -98,7 +98,7 @@ class SensorChain:
         ``kelvin`` (shape (n - 1,)), the film temperature of each interval in K, is needed
         when τ depends on the level (``level_exponent``).
         """
-        tau = self.tau / (1.0 + self.kappa)
+        tau = self.tau
         scale = np.ones(n - 1) if self.factor is None else self.factor[:-1]
         if self.level_exponent:
             if kelvin is None:
@@ -109,51 +109,83 @@ class SensorChain:
             scale = scale * ratio**self.level_exponent
         return np.exp(-dt / (tau * scale))
 
-    def support_filters(self, dt: float) -> tuple[FilterCoefficients, FilterCoefficients] | None:
-        """Bilinear ``(b, a)`` of F and of F⁻¹ (conduction), or None."""
-        if self.kappa == 0.0:
+    def support_filters(self, dt: float) -> tuple[CascadeFilter, CascadeFilter] | None:
+        """The fin filter M and its inverse (conduction), or None."""
+        if not math.isfinite(self.fin_ml):
             return None
-        fs = 1.0 / dt
-        forward = bilinear_first_order((self.tau_p, 1.0), (self.tau_p, 1.0 + self.kappa), fs)
-        inverse = bilinear_first_order((self.tau_p, 1.0 + self.kappa), (self.tau_p, 1.0), fs)
-        return forward, inverse
+        return _fin_filters(self.tau, self.fin_ml, self.tau_p, dt)
+
+    def support_transient(self, n: int, dt: float) -> NDArray[np.float64] | None:
+        """The supports' initial excess on the reading, shape (n,), degrees C, or None."""
+        if not math.isfinite(self.fin_ml) or self.mode0 == 0.0:
+            return None
+        return self.mode0 * np.exp(-(dt / self.tau_p) * np.arange(n))
 
 
-def bilinear_first_order(
-    numerator: tuple[float, float], denominator: tuple[float, float], fs: float
-) -> FilterCoefficients:
-    """Bilinear transform of ``(n0 s + n1) / (d0 s + d1)``, as :func:`scipy.signal.bilinear`.
+@dataclass(frozen=True)
+class CascadeFilter:
+    """A unity-DC-gain filter as second-order sections, applied from a steady start.
 
-    With s = 2 fs (1 - z⁻¹)/(1 + z⁻¹) both polynomials become ``(2 fs c0 + c1) + (c1 - 2 fs c0)
-    z⁻¹``; normalised by the denominator's first coefficient. Closed form because the diagnosis
-    builds these filters for every candidate parameter set, and scipy's general routine (through
-    numpy.polynomial objects) took two thirds of a diagnosis's time.
-
-    Returns
-    -------
-    b, a : ndarray, shape (2,)
+    Built from continuous zeros and poles by the bilinear transform s = k (z − 1)/(z + 1),
+    k = 2/dt: z = (k + s)/(k − s), scaled to unity gain at DC. Conjugate pairs make one
+    section, real roots are paired in order of size, and each section's zeros go with the poles
+    nearest the unit circle in the same order. (scipy's ``zpk2sos`` pairs the same way but
+    took most of a fit's time; a fit builds these filters for every parameter it moves.)
     """
-    k = 2.0 * fs
-    b = np.array([k * numerator[0] + numerator[1], numerator[1] - k * numerator[0]])
-    a = np.array([k * denominator[0] + denominator[1], denominator[1] - k * denominator[0]])
-    return b / a[0], a / a[0]
+
+    sos: NDArray[np.float64]
+
+    @classmethod
+    def from_zeros_poles(
+        cls, zeros: NDArray[np.complex128], poles: NDArray[np.complex128], dt: float
+    ) -> CascadeFilter:
+        k = 2.0 / dt
+        numerators = _quadratics((k + zeros) / (k - zeros))
+        denominators = _quadratics((k + poles) / (k - poles))
+        sos = np.hstack((numerators, denominators))
+        sos[0, :3] /= np.prod(sos[:, :3].sum(axis=1) / sos[:, 3:].sum(axis=1))  # unity DC gain
+        return cls(sos=sos)
+
+    def __call__(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        # Steady state of each direct-form-II-transposed section for a constant input x:
+        # y = x (b0 + b1 + b2)/(1 + a1 + a2), z1 = y − b0 x, z2 = b2 x − a2 y.
+        b0, b1, b2, _, a1, a2 = self.sos.T
+        zi = np.empty((self.sos.shape[0], 2))
+        x = values[0]
+        for i in range(self.sos.shape[0]):
+            y = x * (b0[i] + b1[i] + b2[i]) / (1.0 + a1[i] + a2[i])
+            zi[i] = (y - b0[i] * x, b2[i] * x - a2[i] * y)
+            x = y
+        return signal.sosfilt(self.sos, values, zi=zi)[0]
 
 
-def _steady_filter(
-    b: NDArray[np.float64],
-    a: NDArray[np.float64],
-    values: NDArray[np.float64],
-    excess: float = 0.0,
-) -> NDArray[np.float64]:
-    """``lfilter`` of a first-order section started in its first input's steady state.
+def _quadratics(roots: NDArray[np.complex128]) -> NDArray[np.float64]:
+    """Monic quadratics [1, c1, c2] whose roots are ``roots`` (an even count; pairs conjugate).
 
-    ``a[0]`` must be 1. The output starts ``excess`` off that steady state: the state is the
-    output's offset, so ``excess`` is added to the first output and then decays with the
-    filter's pole. The steady state is :func:`scipy.signal.lfilter_zi`'s,
-    (b1 − a1 b0)/(1 + a1), in closed form (the diagnosis calls this for every candidate).
+    Ordered by the size of their largest root, descending (the slow ones first).
     """
-    zi = (b[1] - a[1] * b[0]) / (1.0 + a[1]) * values[0] + excess
-    return signal.lfilter(b, a, values, zi=np.array([zi]))[0]
+    tolerance = 1e-9 * max(1.0, float(np.max(np.abs(roots))))
+    upper = roots[roots.imag > tolerance]
+    real = np.sort(roots.real[np.abs(roots.imag) <= tolerance])[::-1]
+    quads = [(abs(r), 1.0, -2.0 * r.real, abs(r) ** 2) for r in upper]
+    quads += [
+        (max(abs(p), abs(q)), 1.0, -(p + q), p * q)
+        for p, q in zip(real[::2], real[1::2], strict=True)
+    ]
+    quads.sort(key=lambda quad: -quad[0])
+    return np.array([quad[1:] for quad in quads])
+
+
+@functools.lru_cache(maxsize=256)
+def _fin_filters(
+    tau: float, fin_ml: float, tau_p: float, dt: float
+) -> tuple[CascadeFilter, CascadeFilter]:
+    """M and M⁻¹ in discrete time (cached: a fit asks for the same ones often)."""
+    zeros, poles = fin_filter(tau, fin_ml, tau_p)
+    return (
+        CascadeFilter.from_zeros_poles(zeros, poles, dt),
+        CascadeFilter.from_zeros_poles(poles, zeros, dt),
+    )
 
 
 #: Half length of the fractional-delay interpolator (taps: 2 × this).
@@ -259,15 +291,17 @@ def gas_from_reading(
         edges = ~np.isfinite(reading)
         reading = _fill_edges(reading)
     true = (reading - chain.offset) / chain.gain
-    filters = chain.support_filters(dt)
-    lagged = true if filters is None else _steady_filter(*filters[0], true, chain.mode0)
-    scale = 1.0 + chain.kappa
-    junction_k = scale * lagged[:-1] + KELVIN
+    transient = chain.support_transient(true.size, dt)
+    if transient is not None:
+        true = true - transient
+    sections = chain.support_filters(dt)
+    lagged = true if sections is None else sections[1](true)
+    junction_k = lagged[:-1] + KELVIN
     # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
     a: NDArray[np.float64] | float = (
         replace(chain, level_exponent=0.0).poles(reading.size, dt)
         if chain.factor is not None
-        else math.exp(-dt * (1.0 + chain.kappa) / chain.tau)
+        else math.exp(-dt / chain.tau)
     )
     gas, tap = _invert_lag(chain, lagged, a, junction_k)
     for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
@@ -277,13 +311,14 @@ def gas_from_reading(
         gas, tap = _invert_lag(chain, lagged, a, junction_k)
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
-    # The noise of u[k] is (scale/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation
-    # term's slope; an interpolator with weights w (and a low-pass before it) turns the taps
-    # into w ⊛ (-c, 1), whose energy is (1 + c²) Σw² - 2c Σ w_j w_(j+1).
+    # The noise of u[k] is (1/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation term's
+    # slope (M⁻¹ of conduction is 1 at high frequency, where the noise is); an interpolator
+    # with weights w (and a low-pass before it) turns the taps into w ⊛ (-c, 1), whose energy
+    # is (1 + c²) Σw² - 2c Σ w_j w_(j+1).
     if noise_kernel is not None:
         weights = np.convolve(weights, noise_kernel)
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
-    noise_gain = (scale / chain.gain) ** 2 * energy / (1.0 - a) ** 2
+    noise_gain = energy / (chain.gain * (1.0 - a)) ** 2
     return gas, np.broadcast_to(noise_gain, gas.shape)
 
 
@@ -306,13 +341,12 @@ def _invert_lag(
     junction_k: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
     """Gas held over each interval from the lagged temperature, and the noise tap c."""
-    scale = 1.0 + chain.kappa
-    gas = (lagged[1:] - a * lagged[:-1]) * (scale / (1.0 - a))
+    gas = (lagged[1:] - a * lagged[:-1]) / (1.0 - a)
     tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
     if chain.r:
         cube = junction_k * junction_k * junction_k  # products: ** 3 and ** 4 go through pow
         gas = gas + chain.r * (cube * junction_k - chain.wall_k**4)
-        tap = a - (4.0 * chain.r * (1.0 - a) / scale) * cube
+        tap = a - (4.0 * chain.r * (1.0 - a)) * cube
     return gas, tap
 
 
@@ -339,26 +373,28 @@ def reading_from_gas(
     """
     seen = _fill_edges(gas)
     n = seen.size + 1
-    scale = 1.0 + chain.kappa
-    start = (initial_reading - chain.offset) / chain.gain / scale + chain.mode0
-    drive = seen / scale
+    transient = chain.support_transient(n, dt)
+    # The reading at sample 0 holds the supports' initial excess; the lag starts without it.
+    start = (initial_reading - chain.offset) / chain.gain - (
+        0.0 if transient is None else transient[0]
+    )
     if chain.level_exponent:
         # τ follows the sensor's own temperature: the pole of each step from the state.
         base = replace(chain, level_exponent=0.0).poles(n, dt)
-        level = (chain.level_exponent, chain.level_ref_k, _film_gas(chain, seen) / scale)
-        lagged = _lag_loop(drive, base, start, chain.r / scale, scale, chain.wall_k**4, level)
+        level = (chain.level_exponent, chain.level_ref_k, _film_gas(chain, seen))
+        lagged = _lag_loop(seen, base, start, chain.r, chain.wall_k**4, level)
     elif chain.r == 0.0 and chain.factor is None:
-        a = math.exp(-dt * (1.0 + chain.kappa) / chain.tau)
+        a = math.exp(-dt / chain.tau)
         lagged = np.concatenate(
-            ([start], signal.lfilter([1.0 - a], [1.0, -a], drive, zi=[a * start])[0])
+            ([start], signal.lfilter([1.0 - a], [1.0, -a], seen, zi=[a * start])[0])
         )
     else:
         a_k = chain.poles(n, dt)
-        lagged = _lag_loop(drive, a_k, start, chain.r / scale, scale, chain.wall_k**4)
-    filters = chain.support_filters(dt)
-    # F⁻¹ must return the initial reading from the charged mode: its output starts scale·mode0
-    # below the steady state of lagged[0].
-    true = lagged if filters is None else _steady_filter(*filters[1], lagged, -scale * chain.mode0)
+        lagged = _lag_loop(seen, a_k, start, chain.r, chain.wall_k**4)
+    sections = chain.support_filters(dt)
+    true = lagged if sections is None else sections[0](lagged)
+    if transient is not None:
+        true = true + transient
     reading = chain.gain * true + chain.offset
     if chain.delay_s:
         reading = _fill_edges(fractional_shift(reading, -chain.delay_s / dt)[0])
@@ -371,28 +407,27 @@ def _lag_loop(
     drive: NDArray[np.float64],
     a: NDArray[np.float64],
     start: float,
-    r_scaled: float,
-    scale: float,
+    r: float,
     wall4: float,
     level: tuple[float, float, NDArray[np.float64]] | None = None,
 ) -> NDArray[np.float64]:
-    """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r' ((s y[k] + K)^4 - T_w^4)).
+    """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r ((y[k] + K)^4 - T_w^4)).
 
     With ``level = (exponent, T_ref, film_drive)`` the pole of step k is
     a_k^(1/(T/T_ref)^exponent) at the film temperature T, halfway between the state's
-    s y[k] + K and the gas s film_drive[k] + K (τ varying with the level), ``a`` then holding
-    the poles without that factor.
+    y[k] + K and the gas film_drive[k] + K (τ varying with the level), ``a`` then holding the
+    poles without that factor.
     """
     out = [start]
     y = start
     films = (drive if level is None else level[2]).tolist()
     for u, pole, film_u in zip(drive.tolist(), a.tolist(), films, strict=True):
-        kelvin = scale * y + KELVIN
+        kelvin = y + KELVIN
         if level is not None:  # τ at the film temperature, halfway to the gas
-            film = 0.5 * (kelvin + scale * film_u) + 0.5 * KELVIN
+            film = 0.5 * (kelvin + film_u) + 0.5 * KELVIN
             ratio = min(max(film / level[1], 0.5), 2.0)  # as in SensorChain.poles
             pole = pole ** (1.0 / ratio ** level[0])
-        loss = r_scaled * (kelvin**4 - wall4) if r_scaled else 0.0
+        loss = r * (kelvin**4 - wall4) if r else 0.0
         y = pole * y + (1.0 - pole) * (u - loss)
         out.append(y)
     return np.asarray(out)

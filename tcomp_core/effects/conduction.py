@@ -1,28 +1,53 @@
-"""Conduction to the supports: a slow second mode (prong conduction).
+"""Conduction along the legs to the supports (fin theory).
 
-Heat conducted along the wire to its cooler supports adds a slow mode with time constant τp;
-the sensor's transfer function becomes
+A junction between two legs of length L that end on supports is a fin. The wire (diameter d,
+heat capacity ρc, conductivity k_w) in a cross flow of coefficient h obeys
 
-    G(s) = [1 + κ / (1 + τp s)] / (1 + κ + τ s),
+    τ ∂T/∂t = (1/m²) ∂²T/∂x² + T_g − T,    τ = ρcd/(4h),    m² = 4h/(k_w d),
 
-unity DC gain, with κ the ratio of conductive to convective conductance, fitted per sensor
-with one τp. With equal κ the effect cancels in the relation of the two sensors and only
-rescales τ.
+and with the support temperature following the gas through a first-order lag of time constant
+τp the junction (the legs' midpoint) reads
 
-Two sensors cannot identify all five parameters: the ratio G2/G1 has two zeros and two poles,
-so a one-parameter family (τp, κ1, κ2, τ1, τ2 scaled together, τ1/τ2 fixed) explains the data
-equally well. The family is resolved by physics: for wires of one material and exposed length
-in forced convection (Nu ∝ Re^½), both κ and τ grow as d^1.5, so κ1/κ2 = τ1/τ2. A penalty
-holds the fit to that member only where the data are silent (it costs a fraction of one
-unit of the criterion per 0.1 of κ); data that do tell κ1 from κ2 override it.
+    G(s) = (1 − S(s)) / (1 + τ s) + S(s) / (1 + τp s),    S(s) = sech(mL √(1 + τ s)),
+
+unity DC gain: the legs pull the junction towards the supports by S, which fades with
+frequency as the wire's own lag takes over. Factored as G = M / (1 + τ s),
+
+    M(s) = 1 − (τp − τ) s S(s) / (1 + τp s),
+
+the base first-order lag is kept and conduction is the filter M, minimum phase for supports
+slower than the wire (τp ≥ τ/2: on the imaginary axis the subtracted term's modulus is below
+|1 − τ/τp| sech(mL) < 1, so M has no zero in the right half plane) and hence stably invertible
+(:func:`fin_filter`). S is the Weierstrass product of cosh,
+
+    S(s) = Π_n 1 / ((1 + a_n)(1 + τ_n s)),    a_n = 4 (mL)² / ((2n − 1)² π²),
+    τ_n = τ a_n / (1 + a_n),
+
+of which the first :data:`FIN_TERMS` factors are kept as they are and the rest as one lag of
+their summed time constant (first moment) and their DC gain: M is within 0.5 % of exact up
+to ωτ = 2π and 1 % up to ωτ = 60 (``test/test_effects_chain_fast_paths.py``).
+
+Two wires of one material (diffusivity α = k_w/ρc) on alike supports (one L) share
+m² τ = ρc/k_w, so
+
+    (mL_i)² τ_i = L²/α = τ_leg    for both,
+
+one parameter, the legs' diffusion time, whatever the Nusselt law. This is what a lumped model
+(G = [1 + κ/(1 + τp s)]/(1 + κ + τ s), one κ per wire) cannot express: its two κ and the τ
+form a family that explains the two signals equally well and had to be fixed by a prior; with
+fin physics the family is gone. The lumped model's steady conductance ratio is reported for
+comparison, κ = 1/(cosh(mL) − 1) (:func:`fin_kappa`).
 
 The slow mode remembers for several τp: a record that does not start at rest starts with the
-mode charged. Its initial excess is fitted per sensor (``mode1``, ``mode2``, degrees C), so a
-window cut from a running record fits as well as one that starts at rest.
+supports off their equilibrium. Their initial excess, seen by sensor i as ``mode_i`` e^(−t/τp)
+degrees C on its reading, is fitted per sensor, so a window cut from a running record fits as
+well as one that starts at rest.
 """
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -30,56 +55,117 @@ from numpy.typing import NDArray
 
 from .base import Effect, FitContext, ParamSpec
 
-__all__ = ["Conduction"]
+__all__ = ["FIN_TERMS", "Conduction", "fin_filter", "fin_kappa", "fin_length"]
 
-#: Weight of the κ1/κ2 = τ1/τ2 prior, in units of the criterion per unit κ.
-PRIOR_WEIGHT = 3.0
+#: Factors of the Weierstrass product of sech kept as they are (the rest make one lag).
+FIN_TERMS = 6
+#: Search range of the fin length of the slower wire, mL: 0.4 (conduction dominates: κ ≈ 12)
+#: to 7 (the supports pull by sech(7) ≈ 0.2 %: no conduction).
+FIN_ML_RANGE = (0.4, 7.0)
+
+
+def fin_kappa(fin_ml: float) -> float:
+    """Steady conductance ratio κ = 1/(cosh(mL) − 1) of a junction between two fins."""
+    half = 0.5 * fin_ml
+    if half > 350.0:  # sinh overflows; κ is 0 to double precision long before
+        return 0.0
+    return 1.0 / (2.0 * math.sinh(half) ** 2)
+
+
+def fin_length(kappa: float) -> float:
+    """The fin length mL whose conductance ratio is ``kappa`` (:func:`fin_kappa` inverted)."""
+    if kappa <= 0.0:
+        return math.inf
+    return 2.0 * math.asinh(math.sqrt(0.5 / kappa))
+
+
+@functools.lru_cache(maxsize=256)
+def fin_filter(
+    tau: float, fin_ml: float, tau_p: float, terms: int = FIN_TERMS
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """Zeros and poles of the fin filter M(s) (unity DC gain; M⁻¹ swaps them).
+
+    M = 1 − N/D = (D − N)/D with D(s) = (1 + τp s) Π(1 + τ_n s)(1 + τ_tail s) and
+    N(s) = sech(mL)(τp − τ) s: the poles are D's roots (real), the zeros D − N's (left half
+    plane, M being minimum phase for τp ≥ τ/2; otherwise reflected there), and as D and D − N
+    have the same leading coefficient, M = Π(s − zeros)/Π(s − poles).
+
+    Parameters
+    ----------
+    tau : float
+        The wire's convective time constant, s.
+    fin_ml : float
+        mL of its legs.
+    tau_p : float
+        Time constant of the supports' lag, s.
+    terms : int
+        Factors of S kept as they are.
+
+    Returns
+    -------
+    zeros, poles : ndarray of complex, shape (terms + 2,) each, 1/s
+    """
+    n = np.arange(1, terms + 1)
+    a = 4.0 * fin_ml**2 / ((2 * n - 1) ** 2 * math.pi**2)
+    tau_n = tau * a / (1.0 + a)
+    # Σ over all n of τ a_n/(1 + a_n) is τ (mL/2) tanh(mL) (the first moment of sech(mL√(1+τs)));
+    # the factors beyond ``terms`` make one lag of the rest.
+    tail = max(tau * 0.5 * fin_ml * math.tanh(fin_ml) - float(tau_n.sum()), 1e-12 * tau)
+    lags = np.array([tau_p, *tau_n, tail])
+    numerator = np.array([1.0])
+    for lag in lags:  # D(s) = Π(lag s + 1), highest power first
+        numerator = np.convolve(numerator, [lag, 1.0])
+    numerator[-2] -= (tau_p - tau) / math.cosh(fin_ml)  # D − N
+    zeros = np.roots(numerator).astype(np.complex128)
+    # With τp < τ/2 (supports faster than the wire: no physical rig, but a search can pass
+    # there) M is not minimum phase; zeros reflected into the left half plane keep |M| and a
+    # stable inverse.
+    zeros = np.where(zeros.real > 0.0, -zeros.conj(), zeros)
+    return zeros, (-1.0 / lags).astype(np.complex128)
 
 
 class Conduction(Effect):
-    """κ1, κ2 (dimensionless) and τp (s)."""
+    """τ_leg (s), τp (s) and the supports' initial excess ``mode1``, ``mode2`` (degrees C)."""
 
     name = "conduction"
-    summary = "conduction to the supports adds a slow mode (kappa1, kappa2, tau_p)"
+    summary = "conduction along the legs to supports that lag the gas (tau_leg, tau_p)"
+    # Where the fin model is not exact (a junction bead; little slow excitation) the
+    # cross-relation criterion trades a misfit for noise gain along τ ∝ 1/mL², towards legs
+    # far shorter than real ones and τ tens of percent high; the free-run error does not.
+    output_error_params = ("tau_leg",)
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         slowest = max(context.duration_s / 3.0, 4.0 * context.tau_scale_s)
         span = 10.0 * context.level_std_c + 10.0
+        low, high = FIN_ML_RANGE
         return (
             ParamSpec(
-                name="kappa1",
-                unit="1",
-                lower=0.0,
-                upper=3.0,
-                description="conductive/convective conductance of tc1",
-            ),
-            ParamSpec(
-                name="kappa2",
-                unit="1",
-                lower=0.0,
-                upper=3.0,
-                description="conductive/convective conductance of tc2",
+                name="tau_leg",
+                unit="s",
+                lower=low**2 * context.tau_scale_s,
+                upper=high**2 * context.tau_scale_s,
+                description="diffusion time of the legs L^2/alpha, common to both wires",
             ),
             ParamSpec(
                 name="tau_p",
                 unit="s",
                 lower=1.5 * context.tau_scale_s,
                 upper=slowest,
-                description="time constant of the slow (support) mode",
+                description="time constant of the supports' lag",
             ),
             ParamSpec(
                 name="mode1",
                 unit="degC",
                 lower=-span,
                 upper=span,
-                description="initial excess of tc1's slow mode",
+                description="initial excess of the supports seen by tc1",
             ),
             ParamSpec(
                 name="mode2",
                 unit="degC",
                 lower=-span,
                 upper=span,
-                description="initial excess of tc2's slow mode",
+                description="initial excess of the supports seen by tc2",
             ),
         )
 
@@ -90,25 +176,35 @@ class Conduction(Effect):
         tc1: NDArray[np.float64],
         tc2: NDArray[np.float64],
     ) -> list[dict[str, float]]:
-        spec = self.specs(context)[2]
+        leg, support = self.specs(context)[:2]
+        slow_tau = max(params["tau1"], params["tau2"])
+        if "tau_leg" in params:  # given (the output-error search): the supports' lag only
+            legs, supports = [params["tau_leg"]], 3
+        else:
+            legs = [
+                min(max(ml**2 * slow_tau, 1.01 * leg.lower), 0.99 * leg.upper) for ml in (1.2, 2.5)
+            ]
+            supports = 4
         return [
-            {"kappa1": k1, "kappa2": k2, "tau_p": float(tau_p), "mode1": 0.0, "mode2": 0.0}
-            for tau_p in np.geomspace(spec.lower * 1.5, spec.upper / 1.5, 4)
-            for k1, k2 in ((0.02, 0.1), (0.1, 0.02))
+            {"tau_leg": tau_leg, "tau_p": float(tau_p), "mode1": 0.0, "mode2": 0.0}
+            for tau_p in np.geomspace(support.lower * 1.5, support.upper / 1.5, supports)
+            for tau_leg in legs
         ]
 
+    @staticmethod
+    def fin_ml(sensor: int, params: Mapping[str, float]) -> float:
+        """The fin length mL of the legs of ``sensor``: √(τ_leg / τ_i)."""
+        return math.sqrt(params["tau_leg"] / params[f"tau{sensor}"])
+
     def identifiability(self, params: Mapping[str, float]) -> str:
-        ratio = params["tau1"] / params["tau2"]
+        ml1, ml2 = self.fin_ml(1, params), self.fin_ml(2, params)
         return (
-            "conduction: the two signals fix only G2/G1, so the mode common to both sensors "
-            "(kappa1, kappa2, tau_p and the tau scaled together) is set by the prior "
-            f"kappa1/kappa2 = tau1/tau2 = {ratio:.3g} (wires of one material and length); the "
-            f"fit gives kappa1/kappa2 = {params['kappa1'] / max(params['kappa2'], 1e-12):.3g}"
+            "conduction: the wires are taken as one material on alike supports, so one leg "
+            f"diffusion time L^2/alpha = {params['tau_leg']:.3g} s sets both (mL1 = "
+            f"{ml1:.3g}, mL2 = {ml2:.3g}; steady conductance ratios kappa1 = "
+            f"{fin_kappa(ml1):.3g}, kappa2 = {fin_kappa(ml2):.3g}); wires of different "
+            "materials or leg lengths are outside this model"
         )
 
     def conduction(self, sensor: int, params: Mapping[str, float]) -> tuple[float, float, float]:
-        return params[f"kappa{sensor}"], params["tau_p"], params[f"mode{sensor}"]
-
-    def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
-        ratio = params["tau1"] / params["tau2"]
-        return np.array([PRIOR_WEIGHT * (params["kappa1"] - ratio * params["kappa2"])])
+        return self.fin_ml(sensor, params), params["tau_p"], params[f"mode{sensor}"]

@@ -106,6 +106,7 @@ class Interference(Effect):
     """``interference_hz`` and the amplitudes ``interference_a{h}``, ``interference_b{h}``."""
 
     name = "interference"
+    uses_sample_times = True
     summary = (
         "a line and its odd harmonics on one channel, e.g. mains pick-up (interference_hz, "
         "amplitudes)"

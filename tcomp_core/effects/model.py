@@ -35,6 +35,9 @@ __all__ = ["LeastSquaresProblem", "Model", "make_context"]
 
 #: Evaluations allowed to each start of a multi-start search before the best is polished.
 _SCOUT_EVALUATIONS = 30
+#: Samples of the stretch (mid-record) the starts are scouted on when the record is longer:
+#: the scouts only choose the basin; the polish runs on every sample.
+_SCOUT_SAMPLES = 10_000
 
 
 def make_context(
@@ -337,8 +340,8 @@ class Model:
                     chain = replace(chain, gain=gain, offset=offset)
                 conduction = effect.conduction(sensor, params)
                 if conduction is not None:
-                    kappa, tau_p, mode0 = conduction
-                    chain = replace(chain, kappa=kappa, tau_p=tau_p, mode0=mode0)
+                    fin_ml, tau_p, mode0 = conduction
+                    chain = replace(chain, fin_ml=fin_ml, tau_p=tau_p, mode0=mode0)
                 factor = effect.tau_factor(context, params)
                 if factor is not None:
                     chain = replace(chain, factor=factor)
@@ -461,11 +464,12 @@ class Model:
         # Jacobian every step (N ~ 20 000 rows: 40 % of a diagnosis); with P ≲ 20 LSMR solves
         # the same subproblem in a few products with J.
         if len(starts) > 1:
+            scout = self._scout_problem(tc1, tc2, context, rows, hold, problem)
             scouted = [
                 least_squares(
-                    residuals,
+                    scout.residuals,
                     x0,
-                    jac=jacobian,
+                    jac=scout.jacobian,
                     bounds=(lower, upper),
                     max_nfev=_SCOUT_EVALUATIONS,
                     tr_solver="lsmr",
@@ -481,6 +485,33 @@ class Model:
         if not np.isfinite(result.cost):
             raise EstimationError(f"the fit of {self.effects or 'the base model'} diverged")
         return Model(self.effects, unpack(result.x))
+
+    def _scout_problem(
+        self,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        context: FitContext,
+        rows: NDArray[np.bool_] | None,
+        hold: frozenset[str],
+        whole: LeastSquaresProblem,
+    ) -> LeastSquaresProblem:
+        """The criterion on a mid-record stretch of :data:`_SCOUT_SAMPLES` samples for scouting.
+
+        ``whole`` itself when the record is short, when an effect's chain depends on the
+        sample times (:attr:`~tcomp_core.effects.base.Effect.uses_sample_times`), or when the
+        stretch cannot pose the same problem.
+        """
+        n = tc1.size
+        if n <= 2 * _SCOUT_SAMPLES or any(e.uses_sample_times for e in self.instances):
+            return whole
+        start = (n - _SCOUT_SAMPLES) // 2
+        stop = start + _SCOUT_SAMPLES
+        part_rows = None if rows is None else rows[start : stop - 1]
+        try:
+            part = self.problem(tc1[start:stop], tc2[start:stop], context, part_rows, hold)
+        except EstimationError:
+            return whole
+        return part if part.specs == whole.specs else whole
 
     def problem(
         self,

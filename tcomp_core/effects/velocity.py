@@ -41,6 +41,7 @@ class Velocity(Effect):
     """Spline coefficients ``velocity_1 .. velocity_n`` of log s(t) (``velocity_0`` = 0)."""
 
     name = "velocity"
+    uses_sample_times = True
     summary = "a changing flow velocity scales both time constants together (spline of log s(t))"
     setting_choices = tuple({"velocity_smoothness": value} for value in SMOOTHNESS_CHOICES)
 
