@@ -239,7 +239,9 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
         start = Model(extended.effects, {**extended.params, **choice})
         try:
             if effect.output_error_params:
-                fitted = _output_error_fit(evaluator, start, effect.output_error_params)
+                fitted = _output_error_fit(
+                    evaluator, start, effect.output_error_params, effect.output_error_coupled
+                )
             else:
                 fitted = evaluator.fit(start, hold=_output_error_held(model))
         except (TcompError, ValueError, np.linalg.LinAlgError) as exc:
@@ -262,16 +264,19 @@ OUTPUT_ERROR_XATOL = 0.02
 OUTPUT_ERROR_ITERATIONS = 8
 
 
-def _output_error_fit(evaluator: Evaluator, model: Model, names: Sequence[str]) -> Model:
+def _output_error_fit(
+    evaluator: Evaluator, model: Model, names: Sequence[str], coupled: bool
+) -> Model:
     """Fit ``model`` with ``names`` chosen by the free-run error on the estimation blocks.
 
     Each of ``names`` in turn: a grid of :data:`OUTPUT_ERROR_GRID` values over its bounds
     (log-spaced for a time constant), the other parameters fitted by the cross-relation at each
     (from their own starts: a start carried from a neighbour can sit in a poor basin), then a
-    bounded Brent search between the best point's neighbours, the others refitted from the best
-    point's fit at every trial (they move with the parameter: conduction's supports and τ with
-    the legs' length); the fit with the lowest free-run error is kept. Parameters of the
-    model's earlier effects that were chosen this way keep their values.
+    bounded Brent search between the best point's neighbours. When ``coupled`` the others are
+    refitted from the best point's fit at every trial (they move with the parameter:
+    conduction's supports and τ with the legs' length), otherwise held there and refitted once
+    at the end; the fit with the lowest free-run error is kept. Parameters of the model's
+    earlier effects that were chosen this way keep their values.
     """
     held = frozenset(names) | _output_error_held(model)
     specs = {spec.name: spec for spec in model.specs(evaluator.context)}
@@ -300,9 +305,10 @@ def _output_error_fit(evaluator: Evaluator, model: Model, names: Sequence[str]) 
         def error(
             x: float, name: str = name, at: Model = at, log: bool = log, trials=trials
         ) -> float:
-            value = math.exp(x) if log else x
-            fitted = evaluator.fit(Model(at.effects, {**at.params, name: value}), hold=held)
-            trials.append((evaluator.training_error(fitted), fitted))
+            trial = Model(at.effects, {**at.params, name: math.exp(x) if log else x})
+            if coupled:
+                trial = evaluator.fit(trial, hold=held)
+            trials.append((evaluator.training_error(trial), trial))
             return trials[-1][0]
 
         bracket = (math.log(low), math.log(high)) if log else (low, high)
@@ -313,6 +319,10 @@ def _output_error_fit(evaluator: Evaluator, model: Model, names: Sequence[str]) 
             options={"xatol": OUTPUT_ERROR_XATOL, "maxiter": OUTPUT_ERROR_ITERATIONS},
         )
         current = min(trials, key=lambda trial: trial[0])[1]
+        if not coupled:
+            refitted = evaluator.fit(current, hold=held)
+            if evaluator.training_error(refitted) <= min(trials, key=lambda t: t[0])[0]:
+                current = refitted
     return current
 
 

@@ -56,14 +56,14 @@ def _meat(jacobian: NDArray[np.float64], residuals: NDArray[np.float64]) -> NDAr
 
 
 def _at_bound(problem: LeastSquaresProblem, x: NDArray[np.float64]) -> tuple[str, ...]:
-    """Names of the parameters within :data:`AT_BOUND_SHARE` of their range from a bound."""
+    """Parameters within :data:`AT_BOUND_SHARE` of their range from a physical bound."""
     span = problem.upper - problem.lower
     return tuple(
         spec.name
         for spec, value, low, high, width in zip(
             problem.specs, x, problem.lower, problem.upper, span, strict=True
         )
-        if min(value - low, high - value) <= AT_BOUND_SHARE * width
+        if spec.physical and min(value - low, high - value) <= AT_BOUND_SHARE * width
     )
 
 
@@ -107,7 +107,8 @@ def parameter_uncertainty(
         Lower and upper 95 % limit of every searched parameter, in its unit; (nan, nan) when
         the Jacobian is singular.
     at_bound : tuple of str
-        Parameters within :data:`AT_BOUND_SHARE` of their range from a bound.
+        Parameters within :data:`AT_BOUND_SHARE` of their range from a physical bound
+        (:attr:`~tcomp_core.effects.base.ParamSpec.physical`).
     """
     problem = model.problem(tc1, tc2, context, rows)
     x = np.clip(problem.pack(model.params), problem.lower, problem.upper)

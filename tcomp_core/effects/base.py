@@ -40,6 +40,10 @@ class ParamSpec:
         Bounds of the search.
     description : str
         One line for reports.
+    physical : bool
+        Whether the bounds are the parameter's physical range (a fit that ends on one wanted
+        more than physics allows, :mod:`tcomp_core.diagnose.uncertainty`) rather than only
+        the reach of the record (a time constant longer than the record can show).
     """
 
     name: str
@@ -47,6 +51,7 @@ class ParamSpec:
     lower: float
     upper: float
     description: str
+    physical: bool = True
 
     def __post_init__(self) -> None:
         if not self.lower < self.upper:
@@ -119,6 +124,9 @@ class Effect:
     #: each, the other parameters fitted by the cross-relation in between (see
     #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`).
     output_error_params: ClassVar[tuple[str, ...]] = ()
+    #: Whether the other parameters move with an output-error parameter, so that the search
+    #: refits them at each of its trials (costly) instead of once at the end.
+    output_error_coupled: ClassVar[bool] = False
     #: Whether the effect's chain depends on the sample times (``FitContext.time``), so that it
     #: cannot be fitted on a stretch of the record alone.
     uses_sample_times: ClassVar[bool] = False

@@ -133,6 +133,7 @@ class Conduction(Effect):
     # cross-relation criterion trades a misfit for noise gain along τ ∝ 1/mL², towards legs
     # far shorter than real ones and τ tens of percent high; the free-run error does not.
     output_error_params = ("tau_leg",)
+    output_error_coupled = True  # τ and the supports' lag move with the legs' length
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         slowest = max(context.duration_s / 3.0, 4.0 * context.tau_scale_s)
@@ -152,6 +153,7 @@ class Conduction(Effect):
                 lower=1.5 * context.tau_scale_s,
                 upper=slowest,
                 description="time constant of the supports' lag",
+                physical=False,  # supports may lag longer than the record can show
             ),
             ParamSpec(
                 name="mode1",
@@ -159,6 +161,7 @@ class Conduction(Effect):
                 lower=-span,
                 upper=span,
                 description="initial excess of the supports seen by tc1",
+                physical=False,
             ),
             ParamSpec(
                 name="mode2",
@@ -166,6 +169,7 @@ class Conduction(Effect):
                 lower=-span,
                 upper=span,
                 description="initial excess of the supports seen by tc2",
+                physical=False,
             ),
         )
 
