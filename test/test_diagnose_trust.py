@@ -188,6 +188,27 @@ def test_clean_engine_pulses_give_none_with_the_ordinary_physics_named(rate_hz, 
 
 
 @pytest.mark.slow
+def test_a_delay_on_engine_pulses_is_not_taken_for_its_alias_one_period_away():
+    # 9 ms between the junctions on 40 Hz pulses (25 ms period): the delay less one period
+    # fits the cross-relation about as well with tau 50 % long; a coarse scan of trial delays
+    # (5 ms apart) missed the true one and the diagnosis read conduction.
+    delay = 0.009
+    rig = _rig(
+        signal="engine_pulses",
+        rate_hz=5000.0,
+        noise_c=(0.1, 0.1),
+        seed=5,
+        spacing_m=delay * Rig.speed_m_s,
+    )
+    rec = simulate_rig(rig)
+    found = diagnose(_record(rec))
+    assert found.verdict == "delay", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+    assert found.final.params["delay_s"] == pytest.approx(delay, abs=5e-4)
+    assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.02)
+    assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.02)
+
+
+@pytest.mark.slow
 def test_a_strong_property_effect_is_found_with_its_exponent():
     sim = simulate_effect("property", "multisine", noise_percent=1.0, seed=1)
     found = diagnose(_record(sim))
