@@ -183,7 +183,7 @@ class Conduction(Effect):
         leg, support = self.specs(context)[:2]
         slow_tau = max(params["tau1"], params["tau2"])
         if "tau_leg" in params:  # given (the output-error search): the supports' lag only
-            legs, supports = [params["tau_leg"]], 3
+            legs, supports = [params["tau_leg"]], 2
         else:
             legs = [
                 min(max(ml**2 * slow_tau, 1.01 * leg.lower), 0.99 * leg.upper) for ml in (1.2, 2.5)
