@@ -128,9 +128,10 @@ class CascadeFilter:
 
     Built from continuous zeros and poles by the bilinear transform s = k (z − 1)/(z + 1),
     k = 2/dt: z = (k + s)/(k − s), scaled to unity gain at DC. Conjugate pairs make one
-    section, real roots are paired in order of size, and each section's zeros go with the poles
-    nearest the unit circle in the same order. (scipy's ``zpk2sos`` pairs the same way but
-    took most of a fit's time; a fit builds these filters for every parameter it moves.)
+    quadratic, real roots are paired in order of size, and the zero and pole quadratics are
+    each ordered by their largest root and matched in that order, so the slow zeros share a
+    section with the slow poles they nearly cancel. (scipy's ``zpk2sos`` took most of a fit's
+    time; a fit builds these filters for every parameter it moves.)
     """
 
     sos: NDArray[np.float64]
