@@ -33,8 +33,7 @@ from tcomp_core.diagnose import pipeline
 from tcomp_core.diagnose.heldout import Evaluator
 from tcomp_core.diagnose.ranking import MAX_EFFECTS
 from tcomp_core.diagnose.result import ModelFit
-from tcomp_core.effects import EFFECT_NAMES, Model
-from tcomp_core.effects.chain import fractional_shift
+from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.io import Record
 from tcomp_core.simulate_effects import simulate_effect
 
@@ -44,16 +43,9 @@ import bench_diagnose
 
 def offset_c(evaluator: Evaluator, fit: ModelFit) -> float:
     """Mean of the fused gas less the reference over the scored samples, degrees C."""
-    data = evaluator.data
-    weights = [
-        1.0 / (noise.sigma**2 * (tau / data.dt) ** 2)
-        for noise, tau in zip((data.noise1, data.noise2), (fit.tau1, fit.tau2), strict=True)
-    ]
-    fused = (weights[0] * fit.gas1 + weights[1] * fit.gas2) / sum(weights)
-    shifted, _ = fractional_shift(data.ref, 0.5)
-    keep = evaluator.scored_mask(Model(fit.effects, fit.params)) & np.isfinite(shifted)
-    keep &= np.isfinite(fused)
-    return float(np.mean(fused[keep] - shifted[keep]))
+    fused, reference, keep = pipeline.fused_against_reference(evaluator, fit)
+    keep = keep & np.isfinite(fused)
+    return float(np.mean(fused[keep] - reference[keep]))
 
 
 def compare(record: Record) -> dict:

@@ -16,6 +16,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..effects import EFFECT_NAMES, Model, check_effect_names, make_context
 from ..effects.chain import fractional_shift
@@ -112,20 +113,37 @@ def _failure(evaluator: Evaluator, fit: ModelFit) -> FailureAnalysis:
     )
 
 
-def _reference_errors(evaluator: Evaluator, fit: ModelFit) -> dict[str, float]:
+def fused_against_reference(
+    evaluator: Evaluator, fit: ModelFit
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """The fit's fused gas, the reference aligned with it, and the samples that count.
+
+    Inverse-variance fusion of the two reconstructions (a reconstruction's noise grows with
+    τ/dt); gas[k] is the gas held over [t_k, t_k+1), so the reference is read half a sample
+    on.
+
+    Raises
+    ------
+    ValueError
+        If the record has no reference.
+    """
     data = evaluator.data
     if data.ref is None:
-        return {}
+        raise ValueError(f"{data.source}: no reference to compare the gas temperature with")
     sigma2 = (data.noise1.sigma**2, data.noise2.sigma**2)
     taus = (fit.tau1, fit.tau2)
-    # Inverse-variance fusion: a reconstruction's noise grows with τ/dt.
     weights = [1.0 / (s * (t / data.dt) ** 2) for s, t in zip(sigma2, taus, strict=True)]
     fused = (weights[0] * fit.gas1 + weights[1] * fit.gas2) / sum(weights)
-    keep = evaluator.scored_mask(Model(fit.effects, fit.params))
-    # gas[k] is the gas held over [t_k, t_k+1): compare it with the reference half a sample on.
     shifted, _ = fractional_shift(data.ref, 0.5)
-    keep &= np.isfinite(shifted)
-    reference = evaluator.lowpass(np.where(np.isfinite(shifted), shifted, data.ref))
+    keep = evaluator.scored_mask(Model(fit.effects, fit.params)) & np.isfinite(shifted)
+    return fused, np.where(np.isfinite(shifted), shifted, data.ref), keep
+
+
+def _reference_errors(evaluator: Evaluator, fit: ModelFit) -> dict[str, float]:
+    if evaluator.data.ref is None:
+        return {}
+    fused, aligned, keep = fused_against_reference(evaluator, fit)
+    reference = evaluator.lowpass(aligned)
     return {
         name: heldout_error_percent(reference, evaluator.lowpass(gas), keep)
         for name, gas in (("gas1", fit.gas1), ("gas2", fit.gas2), ("fused", fused))

@@ -318,10 +318,10 @@ def _output_error_fit(
             method="bounded",
             options={"xatol": OUTPUT_ERROR_XATOL, "maxiter": OUTPUT_ERROR_ITERATIONS},
         )
-        current = min(trials, key=lambda trial: trial[0])[1]
+        best_error, current = min(trials, key=lambda trial: trial[0])
         if not coupled:
             refitted = evaluator.fit(current, hold=held)
-            if evaluator.training_error(refitted) <= min(trials, key=lambda t: t[0])[0]:
+            if evaluator.training_error(refitted) <= best_error:
                 current = refitted
     return current
 
