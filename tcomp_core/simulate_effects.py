@@ -122,6 +122,10 @@ class EffectRecord:
         Noise standard deviations, degrees C.
     kind : str
         Gas signal kind (see :func:`tcomp_core.simulate.gas_signal`).
+    gas_held : ndarray, shape (N,)
+        True gas temperature at junction 1 averaged over each interval [t_k, t_k+1) of the
+        fine grid (trapezoid rule), what element k of a reconstruction estimates; the last
+        element is the last instant's value. Sharp pulses make it differ from ``gas``.
     """
 
     time: NDArray[np.float64]
@@ -138,6 +142,7 @@ class EffectRecord:
     sigma1: float
     sigma2: float
     kind: str
+    gas_held: NDArray[np.float64] | None = None
 
 
 def _check_effect(effect: str | None) -> str | None:
@@ -446,6 +451,14 @@ def _fine_time(n: int, dt: float, points_per_sample: int) -> NDArray[np.float64]
     return np.arange(count, dtype=np.float64) * (dt / points_per_sample)
 
 
+def _interval_means(fine: NDArray[np.float64], per_sample: int) -> NDArray[np.float64]:
+    """Trapezoid mean of a fine-grid series over each sample interval, shape (n,)."""
+    edges = fine[::per_sample]
+    inner = fine[:-1].reshape(-1, per_sample)
+    means = (inner.sum(axis=1) - 0.5 * inner[:, 0] + 0.5 * edges[1:]) / per_sample
+    return np.append(means, fine[-1])
+
+
 def _delayed_gas(
     kind: SignalKind, t: NDArray[np.float64], delay: float, gas_params: Mapping[str, float]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -474,8 +487,11 @@ def _simulate_clean(
     n: int,
     dt: float,
     oversample: int,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Gas and the two noise-free readings at the ``n`` sample instants, degrees C."""
+) -> tuple[NDArray[np.float64], ...]:
+    """Gas and both noise-free readings at the sample instants, and the held gas, shape (n,).
+
+    The held gas is the gas averaged over each interval (:func:`_interval_means`); degrees C.
+    """
     if effect in ("radiation", "velocity", "property"):
         stride = (oversample + 1) // 2
         t = _fine_time(n, dt, 2 * stride)
@@ -497,7 +513,8 @@ def _simulate_clean(
         else:
             factor = _velocity_factor(t, params["m"], params["depth"], params["period_s"])
             clean = [_linear_rk4_response(gas, factor, tau, step, stride) for tau in taus]
-        return gas[:: 2 * stride], clean[0], clean[1]
+        held = _interval_means(gas, 2 * stride)
+        return gas[:: 2 * stride], clean[0], clean[1], held
 
     t = _fine_time(n, dt, oversample)
     step = dt / oversample
@@ -520,7 +537,7 @@ def _simulate_clean(
         for harmonic, share in INTERFERENCE_HARMONICS:
             phase = 2.0 * np.pi * harmonic * params["line_hz"] * time
             clean2 = clean2 + params["line_c"] * share * np.sin(phase)
-    return gas[::oversample], clean1, clean2
+    return gas[::oversample], clean1, clean2, _interval_means(gas, oversample)
 
 
 def simulate_effect(
@@ -588,7 +605,7 @@ def simulate_effect(
         raise ValueError(f"{duration=} s holds fewer than 2 samples at {dt=} s")
     true_params = _effect_params(effect, tau1, tau2, params)
     taus = (float(tau1), float(tau2))
-    gas, clean1, clean2 = _simulate_clean(
+    gas, clean1, clean2, held = _simulate_clean(
         effect, kind, taus, true_params, _gas_params(effect, signal_params), n, dt, int(oversample)
     )
     phi = true_params["sigma_ratio"] ** -2 if effect == "noise_ratio" else 1.0
@@ -609,4 +626,5 @@ def simulate_effect(
         sigma1=sigma1,
         sigma2=sigma2,
         kind=kind,
+        gas_held=held,
     )

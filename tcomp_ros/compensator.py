@@ -50,6 +50,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.timer import Timer
 from sensor_msgs.msg import Temperature
 
+from tcomp_core.compensation import OutputModel
 from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
@@ -61,6 +62,7 @@ from tcomp_core.online import (
     RECONSTRUCTIONS,
     SIGNAL_MODELS,
     Engine,
+    GasBatch,
     Health,
     Level,
     OnlineConfig,
@@ -91,6 +93,12 @@ MIN_DIAGNOSIS_SAMPLES = 1000
 MAX_DIAGNOSIS_S = 60.0
 #: Shortest period of the background diagnosis, seconds (a job takes seconds anyway).
 MIN_DIAGNOSIS_PERIOD_S = 1.0
+#: A fit compensates the published gas when it lowers the held-out error by this share ...
+MIN_ERROR_FALL = 0.2
+#: ... and until it is this many diagnosis periods old without a newer accepted fit.
+OUTPUT_STALE_PERIODS = 3.0
+#: Pairs run through a new output model before it takes over (its filters warm up).
+PRIME_PAIRS = 2000
 
 
 def _float_range(low: float, high: float) -> list[FloatingPointRange]:
@@ -254,9 +262,19 @@ PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
         "",
         _descriptor(
             "effects the background diagnosis adds to the first-order model, comma-separated "
-            "('' = none); they change the diagnosis and the error it reports, not the "
-            "published gas_temperature, which stays first-order",
-            additional_constraints=f"names from {', '.join(EFFECT_NAMES)}, each at most once",
+            "('' = none), or 'auto' (the diagnosis's final model); they change the diagnosis "
+            "and the error it reports, and with compensate_effects the published gas",
+            additional_constraints=f"'auto' or names from {', '.join(EFFECT_NAMES)}, each at "
+            "most once",
+        ),
+    ),
+    "compensate_effects": (
+        False,
+        _descriptor(
+            "publish gas_temperature compensated with the background fit of effects once it "
+            "lands, lowers the held-out error by 20 % with no parameter on a bound, and while "
+            "it is fresh (3 diagnosis periods); first order otherwise (see output_model in "
+            "/diagnostics)"
         ),
     ),
     "diagnosis_period_s": (
@@ -328,8 +346,10 @@ class CompensatorNode(Node):
         self._diagnosis_error = ""
         self._diagnosis_at = math.nan  # when the data of that diagnosis were taken (clock, s)
         self._submitted_at = math.nan
+        self._submitted: tuple[tuple[str, ...] | None, tuple | None] = ((), None)
+        self._output_fitted_at = math.nan  # when the data of the output model were taken
         # Start a job as soon as the window is long enough and the worker free.
-        self._diagnosis_wanted = bool(self._effects)
+        self._diagnosis_wanted = self._effects_set
 
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -367,6 +387,15 @@ class CompensatorNode(Node):
 
     # -- state -------------------------------------------------------------------------------
     @property
+    def _effects_set(self) -> bool:
+        """Whether effects (or ``auto``) are asked for."""
+        return self._effects is None or bool(self._effects)
+
+    @property
+    def _compensating(self) -> bool:
+        return bool(self._values["compensate_effects"])
+
+    @property
     def engine(self) -> Engine:
         """The online engine (read it, do not feed it: the node's callbacks do)."""
         return self._engine
@@ -386,15 +415,16 @@ class CompensatorNode(Node):
         return OnlineConfig(**{name: values[name] for name in ENGINE_PARAMETERS})
 
     @staticmethod
-    def _diagnosis_effects(values: dict[str, Any]) -> tuple[str, ...]:
-        """The requested effects; raises ValueError on a bad name or diagnosis period."""
+    def _diagnosis_effects(values: dict[str, Any]) -> tuple[str, ...] | None:
+        """The requested effects (None: ``auto``); ValueError on a bad name or period."""
         period = float(values["diagnosis_period_s"])
         if 0.0 < period < MIN_DIAGNOSIS_PERIOD_S:
             raise ValueError(
                 f"diagnosis_period_s={period!r} must be 0 (no periodic diagnosis) or "
                 f">= {MIN_DIAGNOSIS_PERIOD_S} s"
             )
-        return parse_effects(str(values["effects"]))
+        text = str(values["effects"]).strip()
+        return None if text == "auto" else parse_effects(text)
 
     def _start_diagnosis_timer(self) -> None:
         """(Re)create the timer of the periodic diagnosis; none when the period is 0."""
@@ -414,8 +444,9 @@ class CompensatorNode(Node):
         A job costs the worker seconds of CPU and the node the copy of the window; on a small
         machine that shows in the publish latency, for nothing when the model fits.
         """
+        self._check_output_age()
         status = self._engine.last_status
-        if self._effects or (status is not None and status.poor_fit):
+        if self._effects_set or (status is not None and status.poor_fit):
             self.start_diagnosis()
 
     def _validate_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
@@ -454,7 +485,9 @@ class CompensatorNode(Node):
             )
         if "diagnosis_period_s" in changed:
             self._start_diagnosis_timer()
-        if effects != self._effects:
+        if "compensate_effects" in changed and not self._compensating:
+            self._set_output(None, "compensate_effects is false")
+        if effects != self._effects or ("compensate_effects" in changed and self._compensating):
             self._effects = effects
             self._diagnosis_wanted = True
             self.start_diagnosis()
@@ -519,6 +552,9 @@ class CompensatorNode(Node):
             if stamps:
                 self._inbox[index] = ([], [])
                 engine.add_samples(index, stamps, values, now)
+        period = engine.compensator.period_s
+        if self._compensating and period and engine.recent is None:
+            engine.keep_recent(round(MAX_DIAGNOSIS_S / period))
         try:
             out = engine.reconstruct()
         except DataError as exc:  # never die on data: count, report, carry on
@@ -526,8 +562,13 @@ class CompensatorNode(Node):
             self._last_callback_error = f"pairs refused: {exc}"[:200]
             self.get_logger().warning(self._last_callback_error, throttle_duration_sec=5.0)
             return
+        self._publish(out)
+
+    def _publish(self, out: GasBatch) -> None:
+        """Hand gas samples to the publisher and record their latency."""
         if not out.stamps_ns.size:
             return
+        engine = self._engine
         frame_id = self._values["frame_id"] or self._frame_id
         if frame_id != self._encoder.frame_id:
             self._encoder = Encoder(frame_id)
@@ -574,7 +615,8 @@ class CompensatorNode(Node):
             Whether a job started; not while one runs or the window is too short.
         """
         self._collect_diagnosis()  # a finished job's result belongs to the previous submit
-        segment = self._diagnosis_segment()
+        record = self._output_record() if self._compensating else None
+        segment = np.column_stack(record[1:]) if record is not None else self._diagnosis_segment()
         if segment is None or self._diagnoser.busy:
             return False
         period = float(self._engine.compensator.period_s or math.nan)
@@ -586,7 +628,8 @@ class CompensatorNode(Node):
                 segment[:, 1],
                 period,
                 effects=self._effects,
-                find_suspect=bool(self._effects) or bool(status and status.poor_fit),
+                find_suspect=self._effects_set or bool(status and status.poor_fit),
+                output=record is not None,
             )
         except Exception as exc:  # never die for the diagnosis (e.g. no worker could start)
             self._diagnosis_error = f"{type(exc).__name__}: {exc}"
@@ -596,8 +639,88 @@ class CompensatorNode(Node):
             return False
         if started:
             self._submitted_at = self._now()
+            self._submitted = (self._effects, record)
             self._diagnosis_wanted = False
         return started
+
+    def _output_record(self) -> tuple | None:
+        """The newest gap-free pairs with stamps (at most MAX_DIAGNOSIS_S), if long enough."""
+        engine = self._engine
+        period = engine.compensator.period_s
+        if not period or engine.recent is None or engine.recent.size == 0:
+            return None
+        stamps, tc1, tc2 = engine.recent.newest(engine.compensator.config.gap_factor)
+        needed = max(MIN_DIAGNOSIS_SAMPLES, round(MIN_DIAGNOSIS_S / period))
+        if stamps.size < needed:
+            return None
+        return stamps, tc1, tc2
+
+    # -- the published model ------------------------------------------------------------------
+    def use_output_model(
+        self,
+        model: OutputModel | None,
+        origin_ns: int = 0,
+        record: tuple | None = None,
+        note: str = "",
+    ) -> None:
+        """Publish the gas of ``model`` from now on (None: first order), saying why in ``note``.
+
+        The background fit calls this; a caller may hand a model fitted elsewhere (e.g. the
+        one ``tcomp process --effects`` fitted), with the stamps of its record's first sample.
+        """
+        self._set_output(model, note, origin_ns, record)
+
+    def _set_output(
+        self,
+        model: OutputModel | None,
+        note: str,
+        origin_ns: int = 0,
+        record: tuple | None = None,
+    ) -> None:
+        compensator = self._engine.compensator
+        prime = None
+        recent = self._engine.recent
+        if model is not None and recent is not None and recent.size:
+            stamps, tc1, tc2 = recent.newest(compensator.config.gap_factor)
+            prime = (stamps[-PRIME_PAIRS:], tc1[-PRIME_PAIRS:], tc2[-PRIME_PAIRS:])
+        was = compensator.output_model
+        self._publish(compensator.use_output_model(model, origin_ns, record, prime))
+        compensator.output_note = note
+        if model is not None or was is not None:
+            name = model.name(causal_stream=True) if model is not None else "first-order"
+            self.get_logger().info(f"published gas now uses {name}: {note}")
+
+    def _accept_output(self, result: dict[str, Any]) -> None:
+        """Use a landed background fit for the published gas if it passes, else first order."""
+        model = result.get("output_model")
+        _, record = self._submitted
+        if model is None or record is None:
+            return
+        error, base = float(result["error_pct"]), float(result["base_error_pct"])
+        where = (
+            f"fit of {record[0].size} pairs: held-out error {error:.3g} % ({base:.3g} % "
+            "first order)"
+        )
+        if not model.applied(causal_stream=True):
+            self._set_output(None, f"no effect to compensate; {where}")
+        elif result["at_bound"]:
+            self._set_output(
+                None, f"parameters on a bound ({', '.join(result['at_bound'])}); {where}"
+            )
+        elif not error <= (1.0 - MIN_ERROR_FALL) * base:
+            self._set_output(None, f"the effects lower the error by less than 20 %; {where}")
+        else:
+            self._output_fitted_at = self._submitted_at
+            self._set_output(model, where, int(record[0][0]), record)
+
+    def _check_output_age(self) -> None:
+        """Back to first order when the output model's fit is stale."""
+        period = float(self._values["diagnosis_period_s"])
+        if self._engine.compensator.output_model is None or period <= 0.0:
+            return
+        age = self._now() - self._output_fitted_at
+        if age > OUTPUT_STALE_PERIODS * period:
+            self._set_output(None, f"stale: the last accepted fit is {age:.3g} s old")
 
     def _collect_diagnosis(self) -> None:
         """Take a finished job's result, if any."""
@@ -608,9 +731,12 @@ class CompensatorNode(Node):
                 f"diagnosis failed: {self._diagnosis_error}", throttle_duration_sec=60.0
             )
         elif result is not None:
+            result["requested"] = self._submitted[0]
             self._diagnosis = result
             self._diagnosis_error = ""
             self._diagnosis_at = self._submitted_at
+            if self._compensating:
+                self._accept_output(result)
             self.get_logger().info(
                 f"diagnosis of {result['samples']} samples in {result['seconds']:.1f} s: "
                 f"error {result['base_error_pct']:.3g} % (base), {result['error_pct']:.3g} % "
@@ -622,9 +748,9 @@ class CompensatorNode(Node):
         """Key-values of the latest diagnosis (NaN or 'none' until one is known)."""
         result = self._diagnosis
         # Held-out error and τ with the effects only from a job that fitted the current ones.
-        fitted = result if result.get("effects") == list(self._effects) else {}
+        fitted = result if result.get("requested", ()) == self._effects and result else {}
         return {
-            "effects": ",".join(self._effects) or "none",
+            "effects": "auto" if self._effects is None else ",".join(self._effects) or "none",
             "effects_error_pct": _fmt(fitted.get("error_pct", math.nan)),
             "base_error_pct": _fmt(result.get("base_error_pct", math.nan)),
             "effects_tau1_s": _fmt(fitted.get("tau1", math.nan)),
@@ -676,6 +802,7 @@ class CompensatorNode(Node):
             self.start_diagnosis()
         else:
             self._collect_diagnosis()
+        self._check_output_age()
         status = self.health_status(new_period=True)
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()

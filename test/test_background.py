@@ -19,6 +19,7 @@ KEYS = {
     "error_pct",
     "tau1",
     "tau2",
+    "at_bound",
     "top_suspect",
     "top_suspect_error_pct",
     "samples",
@@ -146,3 +147,20 @@ def test_a_dead_worker_is_reported_and_replaced(diagnoser):
     assert "the diagnosis worker died" in failed["error"]
     assert diagnoser.submit(*args, effects=(), find_suspect=False)
     assert wait_for_result(diagnoser)["tau1"] == pytest.approx(data.tau1, rel=0.05)
+
+
+@pytest.mark.slow
+def test_an_auto_job_returns_the_diagnosis_final_model_as_an_output_model(diagnoser):
+    from tcomp_core.simulate_effects import simulate_effect
+
+    data = simulate_effect("delay", "multisine", duration=4.0, noise_percent=1.0, seed=4)
+    assert diagnoser.submit(
+        data.time, data.tc1, data.tc2, data.dt, effects=None, find_suspect=True, output=True
+    )
+    result = wait_for_result(diagnoser)
+    assert set(result) == KEYS | {"output_model"}, result
+    model = result["output_model"]
+    assert result["effects"] == ["delay"] == list(model.effects)
+    assert model.name(causal_stream=True) == "first-order+delay"
+    assert model.params["delay_s"] == pytest.approx(data.params["delay_s"], rel=0.1)
+    assert result["top_suspect"] == "delay"

@@ -143,7 +143,15 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
         "--diagnose-samples",
         type=int,
         default=20_000,
-        help="the diagnosis sees the last this many pairs (default 20000)",
+        help="the diagnosis sees the last this many pairs, the --effects fit the first this "
+        "many (default 20000)",
+    )
+    out.add_argument(
+        "--effects",
+        default="none",
+        help="publish the gas temperature compensated with physics beyond first order: 'auto' "
+        "(the diagnosis's final model) or comma-separated effects, fitted on the first "
+        "--diagnose-samples pairs; 'none' (default) publishes first order",
     )
     out.add_argument(
         "--compress",
@@ -196,6 +204,7 @@ def process_config(args: argparse.Namespace) -> ProcessConfig:
         columns=source_names(args.columns, "columns") or DEFAULT_COLUMNS,
         diagnose=not args.no_diagnose,
         diagnose_samples=args.diagnose_samples,
+        effects=args.effects,
         compress=args.compress,
         overwrite=args.force,
         frame_id=args.frame_id,

@@ -66,6 +66,13 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
         help="gas temperature model of the Kalman reconstructions (default auto: the most "
         "likely, penalised by its number of settings)",
     )
+    parser.add_argument(
+        "--effects",
+        default="none",
+        help="compensate with physics beyond the first-order model: 'auto' (the diagnosis's "
+        "final model), a comma-separated list of effects to fit, or 'none' (default); tau1, "
+        "tau2 are then fitted with the effects",
+    )
     parser.add_argument("--png", type=Path, help="also plot the reconstruction to this PNG")
     add_force_argument(parser, "overwrite an existing output")
     parser.set_defaults(handler=run)
@@ -81,9 +88,16 @@ def run(args: argparse.Namespace) -> int:
         If only one of ``--tau1``/``--tau2`` is given, or a Kalman reconstruction is asked
         for with options of the difference equation.
     """
+    from ..compensation import parse_compensate_effects
+
     record = read_data(args)
     if (args.tau1 is None) != (args.tau2 is None):
         raise TcompError("give both --tau1 and --tau2, or neither to estimate them")
+    effects = parse_compensate_effects(args.effects)
+    if effects != ():
+        if args.tau1 is not None:
+            raise TcompError("--effects fits tau1 and tau2 with the effects: drop --tau1/--tau2")
+        return _run_compensated(record, args, effects)
     if args.tau1 is None:
         result = estimate_with(record, args, args.method)
         tau1, tau2 = result.tau1, result.tau2
@@ -162,6 +176,69 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
     if ref is not None:
         error = reconstruction_error_percent(ref, gas)
         print(f"e_Tg ({args.reconstruction}) = {error:.2f} % against the ref signal")
+    if args.png:
+        _plot(args, record, gas, ref)
+    return 0
+
+
+def _run_compensated(
+    record: Record, args: argparse.Namespace, effects: tuple[str, ...] | None
+) -> int:
+    """``reconstruct --effects``: the output model fitted, the readings made first order."""
+    import numpy as np
+
+    from ..compensation import compensate, equivalent_readings, fit_output_model
+    from ..estimators.mleiv import phi_from_data
+    from ..metrics import reconstruction_error_percent
+    from ..reconstruct import reconstruct
+
+    model = fit_output_model(record, effects)
+    print("\n".join(model.describe()))
+    print(
+        f"tau1 = {model.tau1:.6f} s, tau2 = {model.tau2:.6f} s; held-out model error "
+        f"{model.error_pct:.3g} % (first order {model.base_error_pct:.3g} %)"
+    )
+    count = record.tc1.size - 1
+    if args.reconstruction == "difference":
+        tc1, tc2 = equivalent_readings(model, record.time, record.tc1, record.tc2, record.dt)
+        phi = args.phi if args.phi is not None else phi_from_data(tc1, tc2, record.dt)
+        recon = reconstruct(
+            tc1,
+            tc2,
+            record.dt,
+            model.tau1,
+            model.tau2,
+            phi=phi,
+            combine=args.combine,
+            postfilter_hz=args.postfilter_hz,
+            time=record.time,
+        )
+        gas = recon.gas + model.level_shift_c()
+    else:
+        if args.postfilter_hz is not None or args.combine != "inverse-variance":
+            raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
+        causal = args.reconstruction == "kalman-causal"
+        result = compensate(
+            model,
+            record.time,
+            record.tc1,
+            record.tc2,
+            record.dt,
+            signal_model=args.signal_model,
+            causal=causal,
+        )
+        gas = result.gas[:count]
+        print(
+            f"{args.reconstruction}: signal model {result.fusion.kind}; median std of the "
+            f"estimate {np.median(result.std):.4g} degC"
+        )
+    written, ref = _write_gas(args, record, gas)
+    print(f"wrote {written}: gas temperature at {gas.size} of {record.tc1.size} samples")
+    if ref is not None:
+        error = reconstruction_error_percent(ref, gas)
+        print(
+            f"e_Tg ({args.reconstruction}, {model.name()}) = {error:.2f} % against the ref signal"
+        )
     if args.png:
         _plot(args, record, gas, ref)
     return 0

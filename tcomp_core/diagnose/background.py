@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..compensation import output_model_from_diagnosis
 from ..effects import check_effect_names
 from ..io import Record
 from .pipeline import diagnose, fit_effects
@@ -71,7 +72,12 @@ def _lower_priority() -> None:
     os.nice(WORKER_NICENESS)
 
 
-def run_job(record: Record, effects: tuple[str, ...], find_suspect: bool) -> dict[str, Any]:
+def run_job(
+    record: Record,
+    effects: tuple[str, ...] | None,
+    find_suspect: bool,
+    output: bool = False,
+) -> dict[str, Any]:
     """Fit the base model plus ``effects`` and, if asked, look for the top suspect.
 
     Runs in the worker process (module level, so it pickles by reference).
@@ -80,41 +86,56 @@ def run_job(record: Record, effects: tuple[str, ...], find_suspect: bool) -> dic
     ----------
     record : Record
         The data to diagnose.
-    effects : tuple of str
-        Effects to add to the base model, in order (checked by :func:`parse_effects`).
+    effects : tuple of str or None
+        Effects to add to the base model, in order (checked by :func:`parse_effects`); None
+        runs the whole diagnosis and takes its final model (``auto``).
     find_suspect : bool
         Also run :func:`~tcomp_core.diagnose.diagnose` with one effect at most.
+    output : bool
+        Also return the fit as an output model (``output_model``, for compensation).
 
     Returns
     -------
     dict
-        ``effects`` (list of str); ``base_error_pct`` and ``error_pct``: held-out model error of
-        the base model and of the base plus ``effects``, %; ``tau1``, ``tau2``: time constants
-        with ``effects``, s; ``top_suspect``: the first significant suspect of the diagnosis,
-        ``"none"`` when none is significant or none was looked for; ``top_suspect_error_pct``:
-        held-out error with it, % (NaN without one); ``samples``: samples diagnosed;
-        ``seconds``: duration of the job, s. On any error, only ``{"error": message}``.
+        ``effects`` (list of str, the final model's for ``auto``); ``base_error_pct`` and
+        ``error_pct``: held-out model error of the base model and of the base plus ``effects``,
+        %; ``tau1``, ``tau2``: time constants with ``effects``, s; ``at_bound``: parameters of
+        that fit on a physical bound; ``top_suspect``: the first significant suspect of the
+        diagnosis, ``"none"`` when none is significant or none was looked for;
+        ``top_suspect_error_pct``: held-out error with it, % (NaN without one); ``samples``:
+        samples diagnosed; ``seconds``: duration of the job, s; with ``output`` also
+        ``output_model`` (:class:`~tcomp_core.compensation.OutputModel`). On any error, only
+        ``{"error": message}``.
     """
     started = _time.perf_counter()
     try:
-        fitted = fit_effects(record, effects)
-        suspect = None
-        if find_suspect:
-            suspects = diagnose(record, max_effects=1).suspects
-            suspect = next((item for item in suspects if item.significant), None)
+        if effects is None:
+            fitted = diagnose(record)
+            suspect = next((item for item in fitted.suspects if item.significant), None)
+        else:
+            fitted = fit_effects(record, effects)
+            suspect = None
+            if find_suspect:
+                suspects = diagnose(record, max_effects=1).suspects
+                suspect = next((item for item in suspects if item.significant), None)
+        model = output_model_from_diagnosis(fitted) if output else None
     except Exception as exc:  # the caller must learn of any failure, not lose its worker
         return {"error": f"{type(exc).__name__}: {exc}"}
-    return {
-        "effects": list(effects),
+    result = {
+        "effects": list(fitted.final.effects),
         "base_error_pct": float(fitted.base.error_pct),
         "error_pct": float(fitted.final.error_pct),
         "tau1": float(fitted.final.tau1),
         "tau2": float(fitted.final.tau2),
+        "at_bound": list(fitted.final.at_bound),
         "top_suspect": suspect.effect if suspect else "none",
         "top_suspect_error_pct": float(suspect.error_pct) if suspect else math.nan,
         "samples": int(record.tc1.size),
         "seconds": _time.perf_counter() - started,
     }
+    if model is not None:
+        result["output_model"] = model
+    return result
 
 
 class BackgroundDiagnoser:
@@ -150,8 +171,9 @@ class BackgroundDiagnoser:
         tc2: ArrayLike,
         dt: float,
         *,
-        effects: Sequence[str],
+        effects: Sequence[str] | None,
         find_suspect: bool,
+        output: bool = False,
     ) -> bool:
         """Start a diagnosis of a uniformly sampled record unless one is running.
 
@@ -163,10 +185,13 @@ class BackgroundDiagnoser:
             Thermocouple temperatures, degrees C.
         dt : float
             Sample interval, s.
-        effects : sequence of str
-            Effects to add to the base model (see :func:`run_job`).
+        effects : sequence of str or None
+            Effects to add to the base model (see :func:`run_job`); None: the diagnosis's
+            final model.
         find_suspect : bool
             Also look for the effect the base model misses most.
+        output : bool
+            Also return the fit as an output model (see :func:`run_job`).
 
         Returns
         -------
@@ -183,7 +208,7 @@ class BackgroundDiagnoser:
         """
         if self._closed:
             raise RuntimeError("the background diagnoser is closed")
-        effects = parse_effects(effects)
+        names = None if effects is None else parse_effects(effects)
         record = Record(
             time=np.asarray(time, dtype=np.float64),
             tc1=np.asarray(tc1, dtype=np.float64),
@@ -201,7 +226,7 @@ class BackgroundDiagnoser:
                 mp_context=multiprocessing.get_context("spawn"),
                 initializer=_lower_priority,
             )
-        self._future = self._pool.submit(run_job, record, effects, find_suspect)
+        self._future = self._pool.submit(run_job, record, names, find_suspect, output)
         return True
 
     def poll(self) -> dict[str, Any] | None:

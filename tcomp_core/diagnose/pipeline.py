@@ -259,6 +259,7 @@ def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) ->
         unexplained=describe_unexplained(evaluator, steps[-1]),
         expected_physics=list(expected),
         identifiability=identifiability,
+        context=evaluator.context,
     )
 
 

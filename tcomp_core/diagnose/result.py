@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..effects import FitContext
 from .residuals import FailureAnalysis
 
 __all__ = ["Diagnosis", "ModelFit", "Suspect", "diagnosis_to_dict"]
@@ -182,6 +183,9 @@ class Diagnosis:
     identifiability : list of str
         Per effect of the final model, what the two signals cannot fix and which prior or
         convention decided it.
+    context : FitContext or None
+        The fits' context at the working rate (level, knot spacing, film cut-off): what a
+        reconstruction with the final model needs besides its parameters.
     expected_physics : list of str
         Effects added to the model as the sensors' ordinary physics, not findings (a ``property``
         of ordinary size: :func:`tcomp_core.diagnose.ranking.is_expected_physics`).
@@ -211,6 +215,7 @@ class Diagnosis:
     unexplained: str = ""
     expected_physics: list[str] = field(default_factory=list)
     identifiability: list[str] = field(default_factory=list)
+    context: FitContext | None = None
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from .conduction import fin_filter
 
 __all__ = [
     "SensorChain",
+    "first_order_reading",
     "fractional_shift",
     "gas_from_reading",
     "reading_from_gas",
@@ -147,17 +148,21 @@ class CascadeFilter:
         sos[0, :3] /= np.prod(sos[:, :3].sum(axis=1) / sos[:, 3:].sum(axis=1))  # unity DC gain
         return cls(sos=sos)
 
-    def __call__(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+    def steady_state(self, value: float) -> NDArray[np.float64]:
+        """The sections' state (``sosfilt``'s ``zi``, shape (S, 2)) at rest at ``value``."""
         # Steady state of each direct-form-II-transposed section for a constant input x:
         # y = x (b0 + b1 + b2)/(1 + a1 + a2), z1 = y − b0 x, z2 = b2 x − a2 y.
         b0, b1, b2, _, a1, a2 = self.sos.T
         zi = np.empty((self.sos.shape[0], 2))
-        x = values[0]
+        x = value
         for i in range(self.sos.shape[0]):
             y = x * (b0[i] + b1[i] + b2[i]) / (1.0 + a1[i] + a2[i])
             zi[i] = (y - b0[i] * x, b2[i] * x - a2[i] * y)
             x = y
-        return signal.sosfilt(self.sos, values, zi=zi)[0]
+        return zi
+
+    def __call__(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        return signal.sosfilt(self.sos, values, zi=self.steady_state(values[0]))[0]
 
 
 def _quadratics(roots: NDArray[np.complex128]) -> NDArray[np.float64]:
@@ -281,22 +286,7 @@ def gas_from_reading(
     noise_gain : ndarray, shape (N - 1,)
         Variance of ``gas`` per unit variance of white noise on the readings.
     """
-    weights = np.array([1.0])
-    edges = None
-    if chain.additive is not None:
-        reading = reading - chain.additive
-    if chain.delay_s:
-        # The chain is time-invariant, so advancing the reading advances the gas; the reading
-        # is smooth (low-passed by the sensor), so it interpolates far better than the gas.
-        reading, weights = fractional_shift(reading, chain.delay_s / dt)
-        edges = ~np.isfinite(reading)
-        reading = _fill_edges(reading)
-    true = (reading - chain.offset) / chain.gain
-    transient = chain.support_transient(true.size, dt)
-    if transient is not None:
-        true = true - transient
-    sections = chain.support_filters(dt)
-    lagged = true if sections is None else sections[1](true)
+    lagged, weights, edges = _lagged_temperature(chain, reading, dt)
     junction_k = lagged[:-1] + KELVIN
     # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
     a: NDArray[np.float64] | float = (
@@ -321,6 +311,68 @@ def gas_from_reading(
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
     noise_gain = energy / (chain.gain * (1.0 - a)) ** 2
     return gas, np.broadcast_to(noise_gain, gas.shape)
+
+
+def _lagged_temperature(
+    chain: SensorChain, reading: NDArray[np.float64], dt: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_] | None]:
+    """The first-order lag's output from the readings: every stage after the lag undone.
+
+    Returns the lagged temperature (shape (N,), degrees C), the delay interpolator's weights
+    and where the delay's stencil left the record (None without a delay).
+    """
+    weights = np.array([1.0])
+    edges = None
+    if chain.additive is not None:
+        reading = reading - chain.additive
+    if chain.delay_s:
+        # The chain is time-invariant, so advancing the reading advances the gas; the reading
+        # is smooth (low-passed by the sensor), so it interpolates far better than the gas.
+        reading, weights = fractional_shift(reading, chain.delay_s / dt)
+        edges = ~np.isfinite(reading)
+        reading = _fill_edges(reading)
+    true = (reading - chain.offset) / chain.gain
+    transient = chain.support_transient(true.size, dt)
+    if transient is not None:
+        true = true - transient
+    sections = chain.support_filters(dt)
+    return (true if sections is None else sections[1](true)), weights, edges
+
+
+def first_order_reading(
+    chain: SensorChain, reading: NDArray[np.float64], dt: float
+) -> NDArray[np.float64]:
+    """What a first-order sensor of time constant ``chain.tau`` would read of the same gas.
+
+    Every stage of the chain but the lag is undone (interference, delay, calibration, the
+    supports' transient, the fin filter); a lag that is not the plain first-order one
+    (radiation, a τ varying with velocity or level) is inverted to the gas and that gas lagged
+    again by the constant ``chain.tau``, from equilibrium at sample 0. The result is the
+    reading of the paper's model, so the first-order reconstructions (Eq. 7, the Kalman
+    smoother and filter) apply to it unchanged; its noise is the reading's, divided by the
+    gain (the fin filter and the re-lag are near 1 where the noise is).
+
+    Parameters
+    ----------
+    chain : SensorChain
+    reading : ndarray, shape (N,)
+        The sensor's readings, degrees C.
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Equivalent first-order readings, degrees C (ends a delay shifts out of the record
+        hold the nearest value).
+    """
+    lagged = _lagged_temperature(chain, reading, dt)[0]
+    if not (chain.r or chain.factor is not None or chain.level_exponent):
+        return lagged
+    gas = _fill_edges(gas_from_reading(chain, reading, dt)[0])
+    # At rest, the gas equals the lag's output plus the radiation loss at that temperature.
+    loss = chain.r * ((lagged[0] + KELVIN) ** 4 - chain.wall_k**4) if chain.r else 0.0
+    return reading_from_gas(SensorChain(tau=chain.tau), gas, dt, float(lagged[0] + loss))
 
 
 def _film_gas(chain: SensorChain, gas: NDArray[np.float64]) -> NDArray[np.float64]:

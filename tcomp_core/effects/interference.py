@@ -19,7 +19,7 @@ from scipy import signal
 
 from .base import Effect, FitContext, ParamSpec
 
-__all__ = ["HARMONICS", "Interference", "find_line"]
+__all__ = ["HARMONICS", "Interference", "find_line", "interference_line"]
 
 #: Harmonics fitted (odd: a rectifier's and a transformer's pick-up).
 HARMONICS = (1, 3, 5)
@@ -28,6 +28,24 @@ HARMONICS = (1, 3, 5)
 LINE_PROMINENCE = 20.0
 LINE_NEIGHBOURS = 12
 LINE_EXCESS = 4.0
+
+
+def interference_line(
+    params: Mapping[str, float], time: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The fitted line and its odd harmonics at ``time`` (s from the fitted record's start).
+
+    Returns
+    -------
+    ndarray, shape like ``time``
+        Degrees C on the channel ``params["interference_channel"]`` carries it on.
+    """
+    phase = 2.0 * np.pi * params["interference_hz"] * np.asarray(time, dtype=np.float64)
+    line = np.zeros(phase.shape)
+    for h in HARMONICS:
+        line += params[f"interference_a{h}"] * np.cos(h * phase)
+        line += params[f"interference_b{h}"] * np.sin(h * phase)
+    return line
 
 
 def _local_median(power: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -163,11 +181,7 @@ class Interference(Effect):
             return None
         key = (context.time.size, context.dt, *(params[s.name] for s in self.specs(context)))
         if self._cache is None or self._cache[0] != key:
-            phase = 2.0 * np.pi * params["interference_hz"] * context.time
-            line = np.zeros(context.time.size)
-            for h in HARMONICS:
-                line += params[f"interference_a{h}"] * np.cos(h * phase)
-                line += params[f"interference_b{h}"] * np.sin(h * phase)
+            line = interference_line(params, context.time)
             line.flags.writeable = False
             self._cache = (key, line)  # one array per parameter set: the fit's memo keys on it
         return self._cache[1]

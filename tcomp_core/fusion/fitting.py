@@ -233,7 +233,8 @@ def _fit_periodic(fit: _Fitting) -> FusionModel:
     span = FREQUENCY_SPAN / (fit.y.shape[1] * fit.base.dt)
     best = scipy.optimize.minimize_scalar(
         lambda frequency: fit.cost(replace(model, freq_hz=frequency)),
-        bounds=(model.freq_hz - span, model.freq_hz + span),
+        # A line within a bin of 0 Hz: the search stays above half its frequency.
+        bounds=(max(model.freq_hz - span, 0.5 * model.freq_hz), model.freq_hz + span),
         method="bounded",
         options={"xatol": 1e-4 * span},
     )

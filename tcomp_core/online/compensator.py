@@ -17,11 +17,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..compensation import OutputModel
 from ..errors import DataError
 from ..fusion import FusionModel
 from ..validation import MIN_SAMPLES
 from .config import FIRST_ESTIMATE_ROWS, PERIOD_LEARNING_SAMPLES, EstimateStatus, OnlineConfig
 from .estimation import WindowEstimator
+from .extended import ExtendedOutput
 from .reconstructors import (
     DifferenceReconstructor,
     GasBatch,
@@ -72,6 +74,12 @@ class OnlineCompensator:
         self._backlog: list[_Run] = []
         self._backlog_rows = 0
         self._next_first_attempt = FIRST_ESTIMATE_ROWS
+        self._extended: ExtendedOutput | None = None
+        self._pending_output: tuple[OutputModel, int, tuple] | None = None
+        self._published_until = np.iinfo(np.int64).min  # newest gas stamp given out
+        #: Why the published gas is first order although output models were asked for, or
+        #: what the caller last decided about the output model ('' when nothing to say).
+        self.output_note = ""
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -87,6 +95,13 @@ class OnlineCompensator:
     @property
     def tau(self) -> tuple[float, float] | None:
         """Time constants (τ1, τ2) in seconds the reconstruction uses, once known."""
+        return self._tau
+
+    @property
+    def published_tau(self) -> tuple[float, float] | None:
+        """τ1, τ2 (s) of the published gas: the output model's while it is in use."""
+        if self._extended is not None:
+            return (self._extended.model.tau1, self._extended.model.tau2)
         return self._tau
 
     @property
@@ -111,6 +126,69 @@ class OnlineCompensator:
         """Stamp of the newest pair taken, ns (0 before the first)."""
         return self._newest_stamp
 
+    @property
+    def output(self) -> ExtendedOutput | None:
+        """The extended model the published gas uses (None: first order)."""
+        return self._extended
+
+    @property
+    def output_model(self) -> OutputModel | None:
+        """The output model set, in use or waiting for the sample period (None: first order)."""
+        if self._extended is not None:
+            return self._extended.model
+        return None if self._pending_output is None else self._pending_output[0]
+
+    def use_output_model(
+        self,
+        model: OutputModel | None,
+        origin_ns: int = 0,
+        record: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None = None,
+        prime: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None = None,
+    ) -> GasBatch:
+        """Publish the gas of ``model`` from the next pair on (None: back to first order).
+
+        Parameters
+        ----------
+        model : OutputModel or None
+        origin_ns : int
+            Stamp of the fitted record's sample 0, ns.
+        record : (ndarray, ndarray, ndarray)
+            Stamps (ns), tc1, tc2 of the fitted record, gap-free (the Kalman filter's signal
+            model is fitted to its equivalent readings).
+        prime : (ndarray, ndarray, ndarray), optional
+            The newest pairs taken (stamps, tc1, tc2), gap-free: run through the new model
+            first, so that its filters are warm and no stamp is skipped at the switch.
+
+        Returns
+        -------
+        GasBatch
+            Gas the priming completed that was not published yet (publish it).
+
+        Raises
+        ------
+        ValueError
+            Before the sample period is known, or without ``record`` for a model.
+        """
+        self._extended = None
+        self._pending_output = None
+        if model is None:
+            return GasBatch.empty()
+        if record is None:
+            raise ValueError("an output model needs its fitted record")
+        if self._period is None:  # built once the period is learnt
+            self._pending_output = (model, origin_ns, record)
+            return GasBatch.empty()
+        self._extended = ExtendedOutput(
+            model, origin_ns, self._config, self._period, record, self._published_until
+        )
+        if prime is None or prime[0].size < 2:
+            return GasBatch.empty()
+        stamps, tc1, tc2 = prime
+        contiguous = np.diff(stamps) * 1e-9 <= self._config.gap_factor * self._period
+        out = self._extended.reconstruct(stamps, tc1, tc2, contiguous)
+        self.counters["reconstructed"] += int(out.stamps_ns.size)
+        return self._published(GasBatch(out.stamps_ns, self._filter(out.gas), out.variance))
+
     def longest_segment(self) -> NDArray[np.float64]:
         """The window's longest gap-free stretch, shape (n, 2): tc1, tc2 in degrees C."""
         if self._estimator is None:
@@ -132,6 +210,9 @@ class OnlineCompensator:
         self._postfilter = None
         self._reconstructor = None  # Eq. (7) with the kept τ until the next estimate lands
         self._restarted = True
+        self._published_until = np.iinfo(np.int64).min  # the stamps start over
+        if self._extended is not None:
+            self._extended.restart()
 
     def reconfigure(self, config: OnlineConfig) -> None:
         """Apply new settings, keeping the window's samples where they still fit."""
@@ -221,6 +302,8 @@ class OnlineCompensator:
         period: float,
     ) -> GasBatch:
         """Window the pairs and reconstruct what τ allows."""
+        if self._pending_output is not None:
+            self.use_output_model(*self._pending_output)
         if self._estimator is None:
             self._estimator = WindowEstimator(self._config, period)
         linked = self._previous is not None
@@ -266,6 +349,14 @@ class OnlineCompensator:
     ) -> GasBatch:
         if steps_s.size == 0:
             return GasBatch.empty()
+        if self._extended is not None:
+            lost = self._extended.lost
+            out = self._extended.reconstruct(stamps, tc1, tc2, contiguous)
+            self.counters["reconstructed"] += int(out.stamps_ns.size)
+            self.counters["unreconstructed"] += int((~contiguous).sum()) + (
+                self._extended.lost - lost
+            )
+            return self._published(GasBatch(out.stamps_ns, self._filter(out.gas), out.variance))
         if self._reconstructor is None:  # an initial τ: Eq. (7) until an estimate lands
             if self._tau is None or self._period is None:
                 raise RuntimeError("pairs are held until the first τ and period")
@@ -274,7 +365,12 @@ class OnlineCompensator:
         self.counters["reconstructed"] += int(out_stamps.size)
         self.counters["unreconstructed"] += int((~contiguous).sum())
         gas, variance = self._reconstructor.reconstruct(stamps, tc1, tc2, steps_s, contiguous)
-        return GasBatch(out_stamps, self._filter(gas), variance)
+        return self._published(GasBatch(out_stamps, self._filter(gas), variance))
+
+    def _published(self, batch: GasBatch) -> GasBatch:
+        if batch.stamps_ns.size:
+            self._published_until = int(batch.stamps_ns[-1])
+        return batch
 
     def _filter(self, gas: NDArray[np.float64]) -> NDArray[np.float64]:
         cutoff = self._config.postfilter_hz

@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike
 
 from .compensator import OnlineCompensator
 from .config import EstimateStatus, OnlineConfig
+from .extended import RecentPairs
 from .health import NO_DIAGNOSIS, NO_LATENCY, Health, HealthMonitor
 from .pairing import PairCounters, PairMatcher, Pairs
 from .reconstructors import GasBatch
@@ -73,6 +74,15 @@ class Engine:
         self._pairs: list[Pairs] = []
         #: Gas samples reconstructed so far.
         self.published = 0
+        #: The newest pairs with their stamps, when kept (:meth:`keep_recent`).
+        self.recent: RecentPairs | None = None
+
+    def keep_recent(self, capacity: int) -> None:
+        """Keep the newest ``capacity`` pairs with their stamps (0: keep none)."""
+        if capacity <= 0:
+            self.recent = None
+        elif self.recent is None or self.recent.capacity != capacity:
+            self.recent = RecentPairs(capacity)
 
     @property
     def counters(self) -> PairCounters:
@@ -188,6 +198,8 @@ class Engine:
         """
         if pairs is None:
             pairs = self.take_pairs()
+        if self.recent is not None:
+            self.recent.add(pairs.stamps_ns, pairs.tc1, pairs.tc2)
         out = self.compensator.add_pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2)
         self.published += int(out.stamps_ns.size)
         return out

@@ -83,6 +83,33 @@ NO_LATENCY: dict[str, str] = {
 LIVE_ONLY_KEYS: tuple[str, ...] = tuple(NO_LATENCY)
 
 
+def output_values(engine: OnlineCompensator) -> dict[str, str]:
+    """Which model the published gas temperature uses, as diagnostic key-values.
+
+    ``output_model`` (``first-order`` or ``first-order+effect+...``), its held-out error
+    ``output_model_error_pct``, ``output_model_since`` (stamp of the first gas sample published
+    with it, ns; empty before), ``output_model_tau{1,2}_s``, ``output_model_level_shift_c``,
+    ``output_model_latency_samples``, ``output_model_pieces`` (how each effect is treated) and
+    ``output_model_note`` (the caller's reason for the choice).
+    """
+    output = engine.output
+    model = engine.output_model
+    pieces = model.stream_pieces() if model is not None else ()
+    return {
+        "output_model": model.name(causal_stream=True) if model is not None else "first-order",
+        "output_model_error_pct": format_value(model.error_pct if model else math.nan),
+        "output_model_since": ""
+        if output is None or output.since_ns is None
+        else str(output.since_ns),
+        "output_model_tau1_s": format_value(model.tau1 if model else math.nan),
+        "output_model_tau2_s": format_value(model.tau2 if model else math.nan),
+        "output_model_level_shift_c": format_value(model.level_shift_c() if model else 0.0),
+        "output_model_latency_samples": str(output.latency if output else 0),
+        "output_model_pieces": "; ".join(f"{p.effect}: {p.handling}" for p in pieces),
+        "output_model_note": engine.output_note,
+    }
+
+
 def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> dict[str, str]:
     """Settings, τ in use and the latest estimate of ``engine``, as diagnostic key-values.
 
@@ -132,6 +159,7 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
             for i in (1, 2)
             for end in ("low", "high")
         },
+        **output_values(engine),
         "estimate_accepted": str(bool(status and status.accepted)).lower(),
         "last_reason": status.reason if status else "",
     }

@@ -251,7 +251,7 @@ class ScheduledEngine:
                 engine.add_samples(index, *batch[index], now)
         pairs = engine.take_pairs()
         gas = engine.reconstruct(pairs)
-        tau = engine.compensator.tau
+        tau = engine.compensator.published_tau
         status = health = None
         assert self._t0 is not None
         if last >= self._next_update:

@@ -121,4 +121,13 @@ def format_summary(outcomes: Sequence[Outcome]) -> str:
             f"{name} {result.pairs:>10} {tau1:>10.5g} {tau2:>10.5g} {result.verdict[:12]:<12} "
             f"{result.seconds:>8.2f} {share:>10} {result.pairs_per_s:>10.4g}"
         )
+    for outcome in outcomes:
+        output = outcome.result.output_model if outcome.result is not None else {}
+        if output:
+            pieces = "; ".join(f"{p['effect']}: {p['handling']}" for p in output["pieces"])
+            lines.append(
+                f"{outcome.source.name}: gas published with {output['name']} "
+                f"(fitted in {outcome.result.output_model_seconds:.1f} s"  # type: ignore[union-attr]
+                f"{'; ' + pieces if pieces else ''})"
+            )
     return "\n".join(lines)

@@ -38,9 +38,11 @@ from ..io import (
     open_stream,
 )
 from ..online import Engine, EngineStep, OnlineConfig, PairCounters, ScheduledEngine
+from ..online.extended import RecentPairs
 from ..online.health import Level, format_value
 from ..online.schedule import REF
 from .output import BagOutput, CsvOutput
+from .output_model import FittedOutput, fit_stream_output_model
 
 __all__ = ["ProcessConfig", "ProcessResult", "process"]
 
@@ -85,6 +87,10 @@ class ProcessConfig:
     silence_timeout_s : float
         A sensor silent this long in stamp time is an ERROR in the diagnostics, seconds (the
         node's ``silence_timeout_s``).
+    effects : str
+        The model the published gas uses: ``"none"`` (first order), ``"auto"`` (the
+        diagnosis's final model) or comma-separated effects, fitted on the first
+        ``diagnose_samples`` pairs (:mod:`.output_model`).
     """
 
     online: OnlineConfig = field(default_factory=OnlineConfig)
@@ -101,6 +107,7 @@ class ProcessConfig:
     sync_slop_s: float = 0.0
     queue_size: int = 2000
     silence_timeout_s: float = 1.0
+    effects: str = "none"
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.sync_slop_s) and 0.0 <= self.sync_slop_s <= 1.0):
@@ -149,6 +156,11 @@ class ProcessResult:
         Pairing and compensator counters.
     diagnosis : dict
         Key values of the diagnosis (empty when skipped).
+    output_model : dict
+        The model the published gas used (:meth:`~tcomp_core.compensation.OutputModel.summary`
+        as a causal stream applies it; empty for first order).
+    output_model_seconds : float
+        Wall time of its fit (0 for first order).
     """
 
     source: Path
@@ -164,6 +176,8 @@ class ProcessResult:
     warnings: list[str] = field(default_factory=list)
     counters: dict[str, int] = field(default_factory=dict)
     diagnosis: dict[str, str] = field(default_factory=dict)
+    output_model: dict[str, Any] = field(default_factory=dict)
+    output_model_seconds: float = 0.0
 
     @property
     def pairs_per_s(self) -> float:
@@ -186,43 +200,15 @@ class Progress(Protocol):
 # The diagnosis
 
 
-class _Tail:
-    """The newest ``capacity`` pairs (stamps, tc1, tc2, ref), for the diagnosis."""
-
-    def __init__(self, capacity: int) -> None:
-        self.capacity = capacity
-        self.parts: list[tuple[NDArray, ...]] = []
-        self.size = 0
-
-    def add(self, *columns: NDArray) -> None:
-        """Append pairs: stamps (ns), tc1, tc2, ref (degrees C), shape (M,) each."""
-        if not columns[0].size:
-            return
-        self.parts.append(columns)
-        self.size += int(columns[0].size)
-        while self.size - self.parts[0][0].size >= self.capacity:
-            self.size -= self.parts.pop(0)[0].size
-
-    def stretch(self, gap_factor: float) -> tuple[NDArray, ...]:
-        """The longest gap-free stretch of the tail: stamps, tc1, tc2, ref."""
-        columns = [np.concatenate(c)[-self.capacity :] for c in zip(*self.parts, strict=True)]
-        steps = np.diff(columns[0])
-        if steps.size == 0:
-            return tuple(columns)
-        breaks = np.flatnonzero(steps > gap_factor * np.median(steps)) + 1
-        edges = np.concatenate(([0], breaks, [columns[0].size]))
-        longest = int(np.argmax(np.diff(edges)))
-        part = slice(int(edges[longest]), int(edges[longest + 1]))
-        return tuple(c[part] for c in columns)
-
-
-def _diagnose(tail: _Tail, source: Path, gap_factor: float) -> tuple[str, dict[str, str], Level]:
+def _diagnose(
+    tail: RecentPairs, source: Path, gap_factor: float
+) -> tuple[str, dict[str, str], Level]:
     """Run the diagnosis on the tail: verdict, key values, level."""
     from ..diagnose import diagnose
 
     if tail.size == 0:
         return "failed: no pairs", {}, Level.ERROR
-    stamps, tc1, tc2, ref = tail.stretch(gap_factor)
+    stamps, tc1, tc2, ref = tail.longest(gap_factor)
     if stamps.size < MIN_DIAGNOSIS_SAMPLES:
         return f"failed: longest gap-free stretch has only {stamps.size} pairs", {}, Level.WARN
     dt = float(np.median(np.diff(stamps))) * 1e-9
@@ -396,7 +382,14 @@ def _run(
     schedule = ScheduledEngine(
         engine, update_period_s=config.update_period_s, batch_s=config.batch_s
     )
-    tail = _Tail(config.diagnose_samples)
+    fitted = _output_model(source, config)
+    if fitted is not None:
+        engine.compensator.use_output_model(fitted.model, fitted.origin_ns, fitted.record)
+        engine.compensator.output_note = (
+            f"fitted on the first {fitted.record[0].size} pairs "
+            f"({'diagnosis' if config.effects.strip() == 'auto' else 'effects ' + config.effects})"
+        )
+    tail = RecentPairs(config.diagnose_samples)
     join_ref = _RefJoin()
     frame_id = config.frame_id
     last_good: dict[str, tuple[int, int]] = {}  # role -> (messages read, newest stamp)
@@ -470,4 +463,26 @@ def _run(
         warnings=warnings,
         counters=counters,
         diagnosis=diagnosis,
+        output_model={} if fitted is None else fitted.model.summary(causal_stream=True),
+        output_model_seconds=0.0 if fitted is None else fitted.seconds,
+    )
+
+
+def _output_model(source: Path, config: ProcessConfig) -> FittedOutput | None:
+    """The output model ``config.effects`` asks for, fitted on the first pairs (or None)."""
+    from ..compensation import parse_compensate_effects
+
+    effects = parse_compensate_effects(config.effects)
+    if effects == ():
+        return None
+    return fit_stream_output_model(
+        source,
+        effects,
+        topics=config.topics,
+        columns=config.columns,
+        samples=config.diagnose_samples,
+        slop_ns=round(config.sync_slop_s * 1e9),
+        queue_size=config.queue_size,
+        valid_range=config.online.valid_range,
+        gap_factor=config.online.gap_factor,
     )

@@ -1,0 +1,31 @@
+"""Compensation with the diagnosed physics: the gas temperature of an extended model.
+
+:mod:`.plan` decides how each effect of a fitted model is treated (:class:`OutputModel`, the
+"never worse" rules); :mod:`.offline` reconstructs a whole record with it (Kalman smoother or
+causal filter); :mod:`.stream` turns a stream of readings into first-order ones sample by
+sample, for the compensator node and ``tcomp process``.
+"""
+
+from __future__ import annotations
+
+from .offline import Compensated, compensate, equivalent_readings
+from .plan import (
+    FIRST_ORDER,
+    OutputModel,
+    Piece,
+    fit_output_model,
+    output_model_from_diagnosis,
+    parse_compensate_effects,
+)
+
+__all__ = [
+    "FIRST_ORDER",
+    "Compensated",
+    "OutputModel",
+    "Piece",
+    "compensate",
+    "equivalent_readings",
+    "fit_output_model",
+    "output_model_from_diagnosis",
+    "parse_compensate_effects",
+]

@@ -1,0 +1,114 @@
+"""A whole record's gas temperature compensated with an extended model.
+
+Each sensor's readings are turned into the readings a first-order sensor of the model's τ
+would give of the same gas (:func:`~tcomp_core.effects.chain.first_order_reading`: the
+effects' stages undone, a non-first-order lag re-lagged); the first-order reconstructions then
+apply unchanged, the Kalman smoother or causal filter (:func:`tcomp_core.fusion.fuse`) with its
+signal model and standard deviation, or Eq. (7). The level rules of the output model
+(:meth:`~.plan.OutputModel.level_shift_c`) are applied last.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..effects.chain import first_order_reading
+from ..fusion import FusionModel, FusionResult, fuse
+from ..fusion.signal_model import ModelChoice
+from .plan import OutputModel
+
+__all__ = ["Compensated", "compensate", "equivalent_readings"]
+
+
+def equivalent_readings(
+    model: OutputModel,
+    time: NDArray[np.float64],
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Both sensors' readings as first-order sensors of τ1, τ2 would give them.
+
+    Parameters
+    ----------
+    model : OutputModel
+    time : ndarray, shape (N,)
+        Sample times on the model's time base (``model.origin_s`` is the fitted record's
+        start), s.
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C, sampled every ``dt`` seconds.
+    dt : float
+
+    Returns
+    -------
+    tuple of ndarray, shape (N,) each
+        Degrees C, tc2 on tc1's scale when a calibration is applied.
+    """
+    first, second = model.chains(time, dt)
+    return first_order_reading(first, tc1, dt), first_order_reading(second, tc2, dt)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Compensated:
+    """A gas temperature reconstructed with an output model.
+
+    Attributes
+    ----------
+    gas, std : ndarray, shape (N,)
+        Gas temperature and its standard deviation, degrees C; element k holds over
+        ``[t_k, t_k+1)``, the last a one-step prediction.
+    fusion : FusionResult
+        The Kalman reconstruction of the equivalent readings (before the level rule).
+    model : OutputModel
+    readings : (ndarray, ndarray)
+        The equivalent first-order readings, shape (N,) each.
+    """
+
+    gas: NDArray[np.float64]
+    std: NDArray[np.float64]
+    fusion: FusionResult
+    model: OutputModel
+    readings: tuple[NDArray[np.float64], NDArray[np.float64]]
+
+
+def compensate(
+    model: OutputModel,
+    time: NDArray[np.float64],
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    *,
+    signal_model: ModelChoice | FusionModel = "auto",
+    causal: bool = False,
+) -> Compensated:
+    """The Kalman-fused gas temperature of a record under ``model``.
+
+    Parameters
+    ----------
+    model : OutputModel
+    time, tc1, tc2, dt
+        As :func:`equivalent_readings`.
+    signal_model : str or FusionModel
+        Passed to :func:`tcomp_core.fusion.fuse` (fitted to the equivalent readings).
+    causal : bool
+        The forward Kalman filter alone instead of the smoother (the equivalent readings of
+        a delay still look a delay ahead on tc2).
+
+    Returns
+    -------
+    Compensated
+    """
+    readings = equivalent_readings(model, time, tc1, tc2, dt)
+    fusion = fuse(
+        readings[0], readings[1], dt, model.tau1, model.tau2, model=signal_model, causal=causal
+    )
+    return Compensated(
+        gas=fusion.gas + model.level_shift_c(),
+        std=fusion.std,
+        fusion=fusion,
+        model=model,
+        readings=readings,
+    )

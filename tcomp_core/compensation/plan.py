@@ -1,0 +1,327 @@
+"""Which physics the published gas temperature is compensated with, and why.
+
+The diagnosis's final model (:class:`~tcomp_core.diagnose.Diagnosis`) is turned into an
+:class:`OutputModel`: its parameters, the context its effects need (the record's level, the
+knot spacing of a velocity, the film cut-off of a property) and one :class:`Piece` per effect
+saying how the reconstruction treats it:
+
+``compensated``
+    the effect is undone (its stage of the sensor chain inverted);
+``prior``
+    undone, but a part the two signals cannot fix is set by a stated convention (a delay puts
+    the gas on tc1's clock);
+``first order``
+    left as the first-order model has it: the data cannot fix what the reconstruction needs
+    (which sensor's calibration is right: the level stays the first-order fusion's mix of
+    both), the effect is of ordinary size (the sensors' expected physics, below materiality,
+    where compensating would trade a known small bias for the fit's uncertainty), or a causal
+    stream cannot apply it (a velocity profile known only over the fitted record, a film
+    temperature that needs the gas ahead).
+
+The rules are the "never worse" rule of issue 16: no piece that the data cannot fix is changed
+from first order without a stated prior.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..effects import FitContext, Model
+from ..effects.chain import SensorChain
+
+if TYPE_CHECKING:
+    from ..diagnose import Diagnosis
+    from ..io import Record
+
+__all__ = [
+    "FIRST_ORDER",
+    "OutputModel",
+    "Piece",
+    "fit_output_model",
+    "output_model_from_diagnosis",
+    "parse_compensate_effects",
+]
+
+#: ``OutputModel.name`` of the plain first-order model.
+FIRST_ORDER = "first-order"
+
+#: Effects a causal stream cannot apply: a velocity's τ(t) is known only over the fitted
+#: record; a level-dependent τ's film temperature is a zero-phase low-pass of the gas.
+_NOT_CAUSAL = {
+    "velocity": "its tau(t) is known only over the fitted record",
+    "property": "its film temperature is a zero-phase low-pass of the gas (needs samples ahead)",
+}
+
+
+@dataclass(frozen=True)
+class Piece:
+    """How the reconstruction treats one effect of the model.
+
+    Attributes
+    ----------
+    effect : str
+    handling : {'compensated', 'prior', 'first order'}
+    reason : str
+        Why, in words.
+    """
+
+    effect: str
+    handling: str
+    reason: str
+
+    def summary(self) -> dict[str, str]:
+        """JSON-ready form."""
+        return {"effect": self.effect, "handling": self.handling, "reason": self.reason}
+
+
+@dataclass(frozen=True, kw_only=True)
+class OutputModel:
+    """The model a gas temperature is reconstructed with, and the rules it follows.
+
+    Attributes
+    ----------
+    effects : tuple of str
+        The fitted model's effects (those left at first order included).
+    params : mapping of str to float
+        Its parameters: ``tau1``, ``tau2`` (s) and the effects' own.
+    context : FitContext
+        The fit's context at its working rate (level, knot spacing, film cut-off, time base).
+    sigmas : (float, float)
+        Noise standard deviations of the readings the model was fitted to, degrees C.
+    pieces : tuple of Piece
+        One per effect: how the reconstruction treats it.
+    error_pct : float
+        Held-out model error of the fit, % (NaN when unknown).
+    base_error_pct : float
+        Held-out error of the first-order model on the same record, %.
+    origin_s : float
+        Time of the fitted record's sample 0 on the caller's time base, s (a stream's
+        interference phase is counted from it).
+    """
+
+    effects: tuple[str, ...]
+    params: Mapping[str, float]
+    context: FitContext
+    sigmas: tuple[float, float] = (1.0, 1.0)
+    pieces: tuple[Piece, ...] = ()
+    error_pct: float = math.nan
+    base_error_pct: float = math.nan
+    origin_s: float = 0.0
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def tau1(self) -> float:
+        """Time constant of thermocouple 1 under the model, s."""
+        return float(self.params["tau1"])
+
+    @property
+    def tau2(self) -> float:
+        """Time constant of thermocouple 2 under the model, s."""
+        return float(self.params["tau2"])
+
+    def applied(self, causal_stream: bool = False) -> tuple[str, ...]:
+        """The effects undone (``compensated`` or ``prior``); a stream drops the non-causal."""
+        return tuple(
+            piece.effect
+            for piece in self.pieces
+            if piece.handling != "first order"
+            and not (causal_stream and piece.effect in _NOT_CAUSAL)
+        )
+
+    def name(self, causal_stream: bool = False) -> str:
+        """``first-order`` or ``first-order+effect+...`` (the effects undone)."""
+        return "+".join((FIRST_ORDER, *self.applied(causal_stream)))
+
+    def stream_pieces(self) -> tuple[Piece, ...]:
+        """The pieces as a causal stream treats them."""
+        return tuple(
+            Piece(p.effect, "first order", f"not in a causal stream: {_NOT_CAUSAL[p.effect]}")
+            if p.effect in _NOT_CAUSAL and p.handling != "first order"
+            else p
+            for p in self.pieces
+        )
+
+    def context_for(self, time: NDArray[np.float64], dt: float) -> FitContext:
+        """The fit's context moved to another sampling of the same record (``time`` in s)."""
+        time = np.asarray(time, dtype=np.float64) - self.origin_s
+        return replace(self.context, dt=dt, time=time, noise_kernel=None)
+
+    def chains(
+        self, time: NDArray[np.float64], dt: float, causal_stream: bool = False
+    ) -> tuple[SensorChain, SensorChain]:
+        """Both sensors' chains with the applied effects, over ``time`` (s, caller's base).
+
+        Raises
+        ------
+        ValueError
+            If a velocity is applied to samples outside the fitted record.
+        """
+        applied = self.applied(causal_stream)
+        if "velocity" in applied:
+            relative = np.asarray(time) - self.origin_s
+            span = float(self.context.time[-1]) + self.context.dt
+            if relative[0] < -dt or relative[-1] > span + dt:
+                raise ValueError(
+                    "the velocity's tau(t) was fitted on another stretch of the record "
+                    f"(0 to {span:.6g} s from its start; these samples span "
+                    f"{relative[0]:.6g} to {relative[-1]:.6g} s)"
+                )
+        return Model(applied, self.params).chains(self.context_for(time, dt))
+
+    def level_shift_c(self) -> float:
+        """Degrees C added to the gas on tc1's scale to keep the first-order level.
+
+        With a calibration effect tc2 reads ``gain T + offset`` of tc1's scale; which one is
+        right the two signals cannot tell. A first-order reconstruction mixes the two levels
+        about as the inverse variances of the two sensors' reconstructions, 1/(σ_i τ_i)² (the
+        noise of Eq. 7 grows with τ/dt; the Kalman filter leans on the fast sensor alike), so
+        the gas is moved to that mix.
+        """
+        if "calibration" not in self.applied():
+            return 0.0
+        w1, w2 = (
+            1.0 / (sigma * tau) ** 2
+            for sigma, tau in zip(self.sigmas, (self.tau1, self.tau2), strict=True)
+        )
+        gain, offset = self.params["gain"], self.params["offset_c"]
+        return w2 / (w1 + w2) * ((gain - 1.0) * self.context.level_mean_c + offset)
+
+    def summary(self, causal_stream: bool = False) -> dict[str, Any]:
+        """JSON-ready: name, effects, parameters, pieces, level shift, errors, notes."""
+        pieces = self.stream_pieces() if causal_stream else self.pieces
+        return {
+            "name": self.name(causal_stream),
+            "effects": list(self.effects),
+            "params": {key: float(value) for key, value in self.params.items()},
+            "pieces": [piece.summary() for piece in pieces],
+            "level_shift_c": self.level_shift_c(),
+            "error_pct": _finite(self.error_pct),
+            "base_error_pct": _finite(self.base_error_pct),
+            "notes": list(self.notes),
+        }
+
+    def describe(self, causal_stream: bool = False) -> list[str]:
+        """One line per piece, for summaries."""
+        pieces = self.stream_pieces() if causal_stream else self.pieces
+        lines = [f"output model: {self.name(causal_stream)}"]
+        lines += [f"  {piece.effect}: {piece.handling} ({piece.reason})" for piece in pieces]
+        shift = self.level_shift_c()
+        if shift:
+            lines.append(f"  level moved {shift:+.3g} degC to the first-order mix of both sensors")
+        return lines
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _piece(effect: str, expected: bool) -> Piece:
+    if expected:
+        return Piece(
+            effect,
+            "first order",
+            "ordinary size (the sensors' expected physics, below materiality): compensating "
+            "would trade a small known bias for the fit's uncertainty",
+        )
+    if effect == "delay":
+        return Piece(
+            effect,
+            "prior",
+            "only the delay between the sensors is seen: the gas is put on tc1's clock",
+        )
+    if effect == "calibration":
+        return Piece(
+            effect,
+            "prior",
+            "which sensor's calibration is right cannot be seen: the dynamics use both on tc1's "
+            "scale, the level is kept at the first-order fusion's mix of both",
+        )
+    if effect == "radiation":
+        return Piece(effect, "compensated", "the steady radiation error of each wire is removed")
+    if effect == "conduction":
+        return Piece(
+            effect,
+            "compensated",
+            "fin legs: the common leg time L^2/alpha set by the free-run error, not a prior",
+        )
+    if effect == "noise_ratio":
+        return Piece(effect, "compensated", "the noise levels are measured from the readings")
+    return Piece(effect, "compensated", "its stage of the sensor chain is inverted")
+
+
+def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> OutputModel:
+    """The output model of a diagnosis's (or fit's) final model.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        From :func:`tcomp_core.diagnose.diagnose` or :func:`~tcomp_core.diagnose.fit_effects`.
+    origin_s : float
+        Time of the diagnosed record's sample 0 on the caller's time base, s.
+
+    Raises
+    ------
+    ValueError
+        If the diagnosis carries no fit context.
+    """
+    if diagnosis.context is None:
+        raise ValueError(f"{diagnosis.source}: the diagnosis carries no fit context")
+    final = diagnosis.final
+    expected = set(diagnosis.expected_physics)
+    pieces = tuple(_piece(effect, effect in expected) for effect in final.effects)
+    return OutputModel(
+        effects=tuple(final.effects),
+        params=dict(final.params),
+        context=diagnosis.context,
+        sigmas=(diagnosis.sigma1, diagnosis.sigma2),
+        pieces=pieces,
+        error_pct=float(final.error_pct),
+        base_error_pct=float(diagnosis.base.error_pct),
+        origin_s=origin_s,
+        notes=tuple(diagnosis.identifiability),
+    )
+
+
+def parse_compensate_effects(text: str) -> tuple[str, ...] | None:
+    """``--effects`` of reconstruct and process: None for ``auto``, else the names.
+
+    ``""`` and ``"none"`` give the empty set (the first-order model).
+
+    Raises
+    ------
+    ValueError
+        On an unknown or repeated effect name.
+    """
+    from ..effects import check_effect_names
+
+    if text.strip() == "auto":
+        return None
+    names = [] if text.strip() in ("", "none") else [name.strip() for name in text.split(",")]
+    return check_effect_names(names)
+
+
+def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputModel:
+    """Fit the output model of a record: the diagnosis's final model, or a chosen set.
+
+    Parameters
+    ----------
+    record : Record
+    effects : tuple of str or None
+        None runs the diagnosis (:func:`tcomp_core.diagnose.diagnose`) and takes its final
+        model; a tuple fits those effects in order (:func:`~tcomp_core.diagnose.fit_effects`).
+
+    Raises
+    ------
+    DataError, EstimationError
+        As the diagnosis or fit raises them.
+    """
+    from ..diagnose import diagnose, fit_effects
+
+    diagnosis = diagnose(record) if effects is None else fit_effects(record, effects)
+    return output_model_from_diagnosis(diagnosis, origin_s=float(record.time[0]))

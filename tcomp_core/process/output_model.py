@@ -1,0 +1,101 @@
+"""``tcomp process --effects``: the output model fitted on the record's first pairs.
+
+The pairs are matched as the engine matches them (:class:`~tcomp_core.online.PairMatcher`, the
+same slop and queue), the longest gap-free stretch of the first ``diagnose_samples`` is fitted
+(:func:`tcomp_core.compensation.fit_output_model`: the diagnosis for ``auto``, else the effects
+given) and the whole record is then streamed with that model from its first pair on, exactly as
+the compensator node publishes once it is handed the model.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..compensation import OutputModel, fit_output_model
+from ..errors import DataError
+from ..io import Record, open_stream
+from ..online import PairMatcher, Pairs
+from ..online.extended import longest_stretch
+
+__all__ = ["FittedOutput", "fit_stream_output_model"]
+
+
+@dataclass(frozen=True)
+class FittedOutput:
+    """An output model and the record it was fitted on.
+
+    Attributes
+    ----------
+    model : OutputModel
+    origin_ns : int
+        Stamp of the fitted record's sample 0, ns.
+    record : (ndarray, ndarray, ndarray)
+        Stamps (ns), tc1, tc2 of the fitted pairs.
+    seconds : float
+        Wall time of the fit.
+    """
+
+    model: OutputModel
+    origin_ns: int
+    record: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
+    seconds: float
+
+
+def fit_stream_output_model(
+    source: Path,
+    effects: tuple[str, ...] | None,
+    *,
+    topics: tuple[str, str, str | None],
+    columns: tuple[str, str, str | None],
+    samples: int,
+    slop_ns: int,
+    queue_size: int,
+    valid_range: tuple[float, float],
+    gap_factor: float,
+) -> FittedOutput:
+    """Fit the output model on the longest gap-free stretch of the first ``samples`` pairs.
+
+    Raises
+    ------
+    DataError
+        When the record has no pairs, or too few for a fit.
+    EstimationError
+        When the fit fails.
+    """
+    started = time.perf_counter()
+    matcher = PairMatcher(slop_ns=slop_ns, queue_size=queue_size, valid_range=valid_range)
+    parts: list[Pairs] = []
+    matched = 0
+    for block in open_stream(source, topics=topics, columns=columns):
+        for role, index in (("tc1", 0), ("tc2", 1)):
+            batch = block.series.get(role)
+            if batch is not None and len(batch):
+                pairs = matcher.add_batch(index, batch.stamps_ns, batch.temperature)
+                if len(pairs):
+                    parts.append(pairs)
+                    matched += len(pairs)
+        if matched >= samples:
+            break
+    if not parts:
+        raise DataError(f"{source}: no tc1/tc2 pairs to fit the output model on")
+    pairs = Pairs.concatenate(parts)
+    stamps, tc1, tc2 = longest_stretch(
+        [pairs.stamps_ns[:samples], pairs.tc1[:samples], pairs.tc2[:samples]], gap_factor
+    )
+    if stamps.size < 2:
+        raise DataError(f"{source}: too few gap-free pairs ({stamps.size}) to fit a model on")
+    record = Record(
+        time=(stamps - stamps[0]) * 1e-9,
+        tc1=tc1,
+        tc2=tc2,
+        ref=None,
+        source=f"{source} (first {stamps.size} pairs)",
+        dt=float(np.median(np.diff(stamps))) * 1e-9,
+    )
+    model = fit_output_model(record, effects)
+    return FittedOutput(model, int(stamps[0]), (stamps, tc1, tc2), time.perf_counter() - started)

@@ -1,0 +1,204 @@
+"""Compensation with an extended model: equivalent readings, the stream, the rules, the gain.
+
+The equivalent first-order readings are checked against the chain's own forward simulation
+(what the model says a first-order sensor would read of the same gas), the stream against the
+batch, and the compensated gas against the truth of the effect simulator, whose physics is
+integrated in continuous time apart from the library's chains.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from output_models import DT, STREAM_MODELS, model_with
+from scipy import signal
+
+from tcomp_core.compensation import (
+    Piece,
+    compensate,
+    equivalent_readings,
+    parse_compensate_effects,
+)
+from tcomp_core.compensation.stream import EquivalentStream
+from tcomp_core.effects.base import KELVIN
+from tcomp_core.effects.chain import (
+    SensorChain,
+    first_order_reading,
+    reading_from_gas,
+)
+from tcomp_core.fusion import fuse
+from tcomp_core.metrics import reconstruction_error_percent
+from tcomp_core.simulate_effects import simulate_effect
+
+
+def _gas(n: int, seed: int = 0) -> np.ndarray:
+    """A smooth broadband gas temperature around 600 degC, shape (n - 1,)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n - 1) * DT
+    gas = 600.0 + 40.0 * np.sin(2 * np.pi * 1.3 * t)
+    for f in rng.uniform(2.0, 25.0, 6):
+        gas += rng.uniform(5.0, 15.0) * np.sin(2 * np.pi * f * t + rng.uniform(0, 6.3))
+    return gas
+
+
+@pytest.mark.parametrize(
+    "chain",
+    [
+        SensorChain(tau=0.05, gain=1.03, offset=-2.0),
+        SensorChain(tau=0.05, fin_ml=1.5, tau_p=0.8),
+        SensorChain(tau=0.05, r=3e-11, wall_k=500.0 + KELVIN),
+        SensorChain(tau=0.05, gain=0.98, offset=1.0, fin_ml=2.0, tau_p=0.4, r=2e-11, wall_k=600.0),
+    ],
+    ids=["calibration", "conduction", "radiation", "all-three"],
+)
+def test_first_order_reading_is_what_a_first_order_sensor_reads_of_the_same_gas(chain):
+    gas = _gas(4000)
+    start = float(gas[0])
+    # Start the extended sensor at rest in the gas: its reading then, and the first-order one.
+    if chain.r:
+        start_lag = start
+        for _ in range(50):  # the junction temperature at rest: T + r (T^4 - Tw^4) = gas
+            start_lag = start - chain.r * ((start_lag + KELVIN) ** 4 - chain.wall_k**4)
+        initial = chain.gain * start_lag + chain.offset
+    else:
+        initial = chain.gain * start + chain.offset
+    reading = reading_from_gas(chain, gas, DT, initial)
+    expected = reading_from_gas(SensorChain(tau=chain.tau), gas, DT, start)
+    np.testing.assert_allclose(first_order_reading(chain, reading, DT), expected, atol=1e-8)
+
+
+def test_first_order_reading_undoes_a_delay_away_from_the_ends():
+    gas = _gas(4000, seed=1)
+    chain = SensorChain(tau=0.03, delay_s=7.3 * DT)
+    reading = reading_from_gas(chain, gas, DT, float(gas[0]))
+    expected = reading_from_gas(SensorChain(tau=0.03), gas, DT, float(gas[0]))
+    got = first_order_reading(chain, reading, DT)
+    inner = slice(100, -100)
+    np.testing.assert_allclose(got[inner], expected[inner], atol=1e-2)
+
+
+@pytest.mark.parametrize("name", list(STREAM_MODELS))
+def test_the_stream_equals_the_batch_in_any_chunking(name):
+    effects, params = STREAM_MODELS[name]
+    model = model_with(effects, params)
+    sim = simulate_effect(None, "multisine", duration=10.0, noise_percent=1.0, seed=5)
+    origin_ns = 1_700_000_000 * 10**9
+    stamps = origin_ns + np.round(sim.time * 1e9).astype(np.int64)
+    batch = equivalent_readings(model, sim.time, sim.tc1, sim.tc2, sim.dt)
+    rng = np.random.default_rng(7)
+    for _ in range(2):
+        stream = EquivalentStream(model, sim.dt, origin_ns)
+        cuts = np.sort(rng.choice(np.arange(1, sim.tc1.size), 60, replace=False))
+        bounds = [0, *cuts.tolist(), sim.tc1.size]
+        outs = [
+            stream.push(stamps[a:b], sim.tc1[a:b], sim.tc2[a:b])
+            for a, b in itertools.pairwise(bounds)
+        ]
+        got = [np.concatenate([out[i] for out in outs]) for i in range(3)]
+        emitted = got[0].size
+        assert emitted == sim.tc1.size - stream.latency
+        np.testing.assert_array_equal(got[0], stamps[:emitted])
+        inner = slice(60, emitted)  # the batch fills a delay's start from its first value
+        for sensor in (0, 1):
+            np.testing.assert_allclose(got[sensor + 1][inner], batch[sensor][inner], atol=1e-9)
+
+
+def test_a_delay_ahead_on_tc2_makes_the_stream_late_by_it():
+    model = model_with(("delay",), {"delay_s": 10.5 * DT})
+    assert EquivalentStream(model, DT, 0).latency == 10 + 16
+    assert EquivalentStream(model_with(("delay",), {"delay_s": -40 * DT}), DT, 0).latency == 0
+
+
+def test_calibration_keeps_the_first_order_level_and_says_so():
+    model = model_with(("calibration",), {"gain": 1.03, "offset_c": -2.0})
+    w1, w2 = 1 / (0.2 * 0.0238) ** 2, 1 / (0.4 * 0.1168) ** 2
+    expected = w2 / (w1 + w2) * (0.03 * 600.0 - 2.0)
+    assert model.level_shift_c() == pytest.approx(expected)
+    assert model_with(("delay",), {"delay_s": 0.01}).level_shift_c() == 0.0
+
+
+def test_a_stream_leaves_velocity_and_property_at_first_order():
+    model = model_with(("velocity", "delay"), {"delay_s": 0.01})
+    assert model.applied() == ("velocity", "delay")
+    assert model.applied(causal_stream=True) == ("delay",)
+    assert model.name(causal_stream=True) == "first-order+delay"
+    pieces = {p.effect: p.handling for p in model.stream_pieces()}
+    assert pieces == {"velocity": "first order", "delay": "compensated"}
+
+
+def test_expected_physics_is_left_at_first_order():
+    ordinary = replace(
+        model_with(("property",), {"property_exponent": 0.3}),
+        pieces=(Piece("property", "first order", "ordinary size"),),
+    )
+    assert ordinary.applied() == ()
+    assert ordinary.name() == "first-order"
+
+
+def test_parse_compensate_effects():
+    assert parse_compensate_effects("auto") is None
+    assert parse_compensate_effects("none") == ()
+    assert parse_compensate_effects(" delay, radiation ") == ("delay", "radiation")
+    with pytest.raises(ValueError, match="smoke"):
+        parse_compensate_effects("delay,smoke")
+
+
+def _band_error(truth: np.ndarray, gas: np.ndarray) -> float:
+    """e_Tg (%) in the gas band: both low-passed at 30 Hz (zero phase), 5 % ends left out."""
+    sos = signal.butter(4, 30.0, output="sos", fs=1.0 / DT)
+    n = truth.size
+    inner = slice(n // 20, n - n // 20)
+    return reconstruction_error_percent(
+        signal.sosfiltfilt(sos, truth)[inner], signal.sosfiltfilt(sos, gas)[inner]
+    )
+
+
+@pytest.mark.parametrize(
+    ("effect", "params", "least_gain"),
+    [
+        ("delay", {"delay_s": 0.008}, 1.8),
+        ("calibration", {"gain": 1.03, "offset_c": -4.0}, 1.0),
+    ],
+)
+def test_compensated_gas_beats_first_order_with_the_true_parameters(effect, params, least_gain):
+    sim = simulate_effect(effect, "multisine", duration=10.0, noise_percent=1.0, seed=2)
+    assert {k: sim.params[k] for k in params} == params
+    model = model_with((effect,), params, n=sim.tc1.size, level_c=float(np.mean(sim.tc1)))
+    model = replace(model, params={**model.params, "tau1": sim.tau1, "tau2": sim.tau2})
+    truth = sim.gas_held[:-1]
+    for causal in (False, True):
+        first = fuse(sim.tc1, sim.tc2, sim.dt, sim.tau1, sim.tau2, causal=causal)
+        extended = compensate(model, sim.time, sim.tc1, sim.tc2, sim.dt, causal=causal)
+        assert extended.std.shape == extended.gas.shape and np.all(extended.std > 0)
+        gain = _band_error(truth, first.gas[:-1]) / _band_error(truth, extended.gas[:-1])
+        assert gain > least_gain, causal
+
+
+def test_radiation_is_corrected_in_level_not_only_in_dynamics():
+    sim = simulate_effect("radiation", "multisine", duration=10.0, noise_percent=1.0, seed=2)
+    level = float(np.mean(sim.gas))
+    mean_k = level + KELVIN
+    params = {
+        "rho1": 4.0 * sim.params["r1"] * mean_k**3,
+        "rho2": 4.0 * sim.params["r2"] * mean_k**3,
+        "wall_c": sim.params["wall_c"],
+    }
+    model = model_with(("radiation",), params, n=sim.tc1.size)
+    model = replace(
+        model,
+        params={**model.params, "tau1": sim.tau1, "tau2": sim.tau2},
+        context=replace(model.context, level_mean_c=level),
+    )
+    truth = sim.gas_held[:-1]
+    inner = slice(500, truth.size - 500)
+    first = fuse(sim.tc1, sim.tc2, sim.dt, sim.tau1, sim.tau2).gas[:-1]
+    extended = compensate(model, sim.time, sim.tc1, sim.tc2, sim.dt).gas[:-1]
+    first_offset = float(np.mean(first[inner] - truth[inner]))
+    offset = float(np.mean(extended[inner] - truth[inner]))
+    assert first_offset < -5.0  # the wires read low: they radiate to the colder wall
+    assert abs(offset) < 0.1 * abs(first_offset)
+    assert math.isfinite(offset)
