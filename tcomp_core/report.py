@@ -21,6 +21,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from .diagnose.pipeline import fused_gas
 from .diagnose.residuals import Autocorrelation
 from .diagnose.result import Diagnosis, ModelFit, Suspect
 
@@ -229,9 +230,13 @@ def _reconstruction_figure(diagnosis: Diagnosis) -> Figure:
     _plot(ax, time, diagnosis.tc2[window], color="silver", linewidth=0.6, label="tc2 measured")
     if diagnosis.ref is not None:
         _plot(ax, time, diagnosis.ref[window], color="black", linewidth=1.6, label="reference")
-    _plot(ax, time, diagnosis.final.gas1[window], linewidth=0.8, label="gas from tc1")
-    _plot(ax, time, diagnosis.final.gas2[window], linewidth=0.8, label="gas from tc2")
-    ax.set(title=f"gas temperature, {_label(diagnosis.final)}", xlabel="time (s)")
+    sigmas = (diagnosis.sigma1, diagnosis.sigma2)
+    if diagnosis.final.effects:
+        first = fused_gas(diagnosis.base, sigmas, diagnosis.dt)
+        _plot(ax, time, first[window], linewidth=0.8, label="gas, first order (fused)")
+    final = fused_gas(diagnosis.final, sigmas, diagnosis.dt)
+    _plot(ax, time, final[window], linewidth=0.9, label=f"gas, {_label(diagnosis.final)} (fused)")
+    ax.set(title="gas temperature: first order and the final model", xlabel="time (s)")
     ax.set_ylabel("temperature (°C)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
@@ -396,7 +401,12 @@ def _staircase(diagnosis: Diagnosis) -> str:
 def _reconstructions(diagnosis: Diagnosis) -> str:
     parts = [_image(_reconstruction_figure(diagnosis), "reconstructed gas temperature (zoom)")]
     if diagnosis.ref_error_pct:
-        parts.append("<p>Reference against each reconstruction, rms in % of its spread:</p>")
+        parts.append(
+            "<p>Reference against each reconstruction of the final model and the first-order "
+            "fused one, rms in % of its spread (both low-passed at the comparison band edge). "
+            "<code>tcomp reconstruct --effects auto</code> and <code>tcomp process --effects "
+            "auto</code> publish the gas compensated with the final model.</p>"
+        )
         parts.append(
             _table(
                 ["reconstruction", "error (%)"],

@@ -103,6 +103,14 @@ class OutputModel:
     origin_s : float
         Time of the fitted record's sample 0 on the caller's time base, s (a stream's
         interference phase is counted from it).
+    base_taus : (float, float)
+        τ1, τ2 of the first-order model fitted to the same record, s.
+    band_hz : float
+        Band edge of the diagnosis's comparisons, Hz (NaN when unknown): errors against a
+        reference are also given low-passed there, where the model, not the noise, decides.
+    notes : tuple of str
+        What the data cannot fix and which convention decided it (the diagnosis's
+        identifiability).
     """
 
     effects: tuple[str, ...]
@@ -113,6 +121,8 @@ class OutputModel:
     error_pct: float = math.nan
     base_error_pct: float = math.nan
     origin_s: float = 0.0
+    base_taus: tuple[float, float] = (math.nan, math.nan)
+    band_hz: float = math.nan
     notes: tuple[str, ...] = field(default=())
 
     @property
@@ -284,6 +294,8 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         error_pct=float(final.error_pct),
         base_error_pct=float(diagnosis.base.error_pct),
         origin_s=origin_s,
+        base_taus=(float(diagnosis.base.tau1), float(diagnosis.base.tau2)),
+        band_hz=float(diagnosis.eval_cutoff_hz),
         notes=tuple(diagnosis.identifiability),
     )
 

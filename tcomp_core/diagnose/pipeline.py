@@ -113,14 +113,23 @@ def _failure(evaluator: Evaluator, fit: ModelFit) -> FailureAnalysis:
     )
 
 
+def fused_gas(fit: ModelFit, sigmas: tuple[float, float], dt: float) -> NDArray[np.float64]:
+    """Inverse-variance fusion of a fit's two reconstructions, shape (N,), degrees C.
+
+    A reconstruction's noise grows with τ/dt: the weights are 1/(σ_i τ_i/dt)².
+    """
+    taus = (fit.tau1, fit.tau2)
+    weights = [1.0 / (s * t / dt) ** 2 for s, t in zip(sigmas, taus, strict=True)]
+    return (weights[0] * fit.gas1 + weights[1] * fit.gas2) / sum(weights)
+
+
 def fused_against_reference(
     evaluator: Evaluator, fit: ModelFit
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """The fit's fused gas, the reference aligned with it, and the samples that count.
 
-    Inverse-variance fusion of the two reconstructions (a reconstruction's noise grows with
-    τ/dt); gas[k] is the gas held over [t_k, t_k+1), so the reference is read half a sample
-    on.
+    The fused gas is :func:`fused_gas`; gas[k] is the gas held over [t_k, t_k+1), so the
+    reference is read half a sample on.
 
     Raises
     ------
@@ -130,23 +139,27 @@ def fused_against_reference(
     data = evaluator.data
     if data.ref is None:
         raise ValueError(f"{data.source}: no reference to compare the gas temperature with")
-    sigma2 = (data.noise1.sigma**2, data.noise2.sigma**2)
-    taus = (fit.tau1, fit.tau2)
-    weights = [1.0 / (s * (t / data.dt) ** 2) for s, t in zip(sigma2, taus, strict=True)]
-    fused = (weights[0] * fit.gas1 + weights[1] * fit.gas2) / sum(weights)
+    fused = fused_gas(fit, (data.noise1.sigma, data.noise2.sigma), data.dt)
     shifted, _ = fractional_shift(data.ref, 0.5)
     keep = evaluator.scored_mask(Model(fit.effects, fit.params)) & np.isfinite(shifted)
     return fused, np.where(np.isfinite(shifted), shifted, data.ref), keep
 
 
-def _reference_errors(evaluator: Evaluator, fit: ModelFit) -> dict[str, float]:
+def _reference_errors(evaluator: Evaluator, fit: ModelFit, base: ModelFit) -> dict[str, float]:
+    """e_Tg of the final fit's reconstructions and of the first-order fused one, %."""
     if evaluator.data.ref is None:
         return {}
     fused, aligned, keep = fused_against_reference(evaluator, fit)
+    first = fused_against_reference(evaluator, base)[0]
     reference = evaluator.lowpass(aligned)
     return {
         name: heldout_error_percent(reference, evaluator.lowpass(gas), keep)
-        for name, gas in (("gas1", fit.gas1), ("gas2", fit.gas2), ("fused", fused))
+        for name, gas in (
+            ("gas1", fit.gas1),
+            ("gas2", fit.gas2),
+            ("fused", fused),
+            ("fused first-order", first),
+        )
     }
 
 
@@ -254,7 +267,7 @@ def _diagnosis(evaluator, base, failure, steps, rounds, verdict, expected=()) ->
         rounds=rounds,
         verdict=verdict,
         final=steps[-1],
-        ref_error_pct=_reference_errors(evaluator, steps[-1]),
+        ref_error_pct=_reference_errors(evaluator, steps[-1], base),
         notes=notes,
         unexplained=describe_unexplained(evaluator, steps[-1]),
         expected_physics=list(expected),

@@ -45,6 +45,11 @@ class FittedOutput:
     record: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
     seconds: float
 
+    def note(self, effects: str) -> str:
+        """What the diagnostics say of the model (``output_model_note``)."""
+        how = "diagnosis" if effects.strip() == "auto" else f"effects {effects.strip()}"
+        return f"fitted on the first {self.record[0].size} pairs ({how})"
+
 
 def fit_stream_output_model(
     source: Path,

@@ -385,10 +385,7 @@ def _run(
     fitted = _output_model(source, config)
     if fitted is not None:
         engine.compensator.use_output_model(fitted.model, fitted.origin_ns, fitted.record)
-        engine.compensator.output_note = (
-            f"fitted on the first {fitted.record[0].size} pairs "
-            f"({'diagnosis' if config.effects.strip() == 'auto' else 'effects ' + config.effects})"
-        )
+        engine.compensator.output_note = fitted.note(config.effects)
     tail = RecentPairs(config.diagnose_samples)
     join_ref = _RefJoin()
     frame_id = config.frame_id
@@ -456,7 +453,7 @@ def _run(
         gas=engine.published,
         estimates=schedule.estimates,
         reports=schedule.reports,
-        tau=engine.compensator.tau,
+        tau=engine.compensator.published_tau,
         verdict=verdict,
         seconds=time.perf_counter() - started,
         diagnosis_seconds=diagnosis_seconds,

@@ -376,3 +376,42 @@ def test_the_timer_diagnoses_only_a_poor_fit(harness):
     assert poor.spin_until(
         poor.executor, lambda: math.isfinite(poor.node._submitted_at), 5.0
     )  # the fit is poor: the timer starts a job
+
+
+@pytest.mark.slow
+def test_compensate_effects_switches_the_published_gas_to_the_diagnosed_model(harness):
+    from tcomp_core.simulate_effects import simulate_effect
+
+    data = simulate_effect("delay", "multisine", duration=14.0, noise_percent=1.0, seed=8)
+    stamps = stamps_for(data.tc1.size, data.dt)
+    truth = dict(zip(stamps.tolist(), data.gas_held.tolist(), strict=True))
+    h = harness(window_s=4.0, update_period_s=0.2, effects="auto", compensate_effects=True)
+    first = 3000  # 6 s: the window fills, the diagnosis (auto) runs once in the background
+    h.feed(stamps[:first], data.tc1[:first], data.tc2[:first])
+    status = h.next_diagnostics(
+        lambda s: values(s)["output_model"] != "first-order", timeout=DIAGNOSIS_DEADLINE_S
+    )
+    found = values(status)
+    assert found["output_model"] == "first-order+delay"
+    assert found["effects"] == "auto"
+    assert "held-out error" in found["output_model_note"]
+    assert float(found["output_model_tau1_s"]) == pytest.approx(data.tau1, rel=0.05)
+    assert int(found["output_model_latency_samples"]) > 16  # the delay's look-ahead
+    h.feed(stamps[first:], data.tc1[first:], data.tc2[first:])
+    h.catch_up()
+    h.settle(0.5)
+    since = int(values(h.next_diagnostics())["output_model_since"])
+    published = np.array([stamp for stamp, _ in h.gas])
+    assert np.all(np.diff(published) > 0)  # nothing repeated at the switch
+    errors = np.array([value - truth[stamp] for stamp, value in h.gas])
+    before = (published > stamps[500]) & (published < since)
+    after = published > since + round(1e9)
+    assert before.sum() > 500 and after.sum() > 2000
+    rms_before = np.sqrt(np.mean(errors[before] ** 2))
+    rms_after = np.sqrt(np.mean(errors[after] ** 2))
+    assert rms_after < 0.3 * rms_before
+    # The operator turns it off: first order again, and the diagnostics say why.
+    assert h.node.set_parameters([Parameter("compensate_effects", value=False)])[0].successful
+    found = values(h.next_diagnostics())
+    assert found["output_model"] == "first-order"
+    assert found["output_model_note"] == "compensate_effects is false"

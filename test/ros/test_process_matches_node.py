@@ -98,6 +98,20 @@ def _drive_node(node: CompensatorNode, messages, batch_s: float, update_s: float
     return stamps, np.array([value for _, _, value, _ in decoded]), statuses
 
 
+def _offline_node(ros_context, config: ProcessConfig) -> CompensatorNode:
+    """A node with the settings of ``config`` on the stamp-time clock, no background diagnosis."""
+    return CompensatorNode(
+        context=ros_context,
+        parameter_overrides=[
+            Parameter("use_sim_time", value=True),
+            Parameter("window_s", value=config.online.window_s),
+            Parameter("update_period_s", value=config.update_period_s),
+            Parameter("reconstruction", value=config.online.reconstruction),
+            Parameter("diagnosis_period_s", value=0.0),
+        ],
+    )
+
+
 def _bag_outputs(bag: Path):
     with Reader(bag) as reader:
         wanted = [c for c in reader.connections if c.topic == "/gas_temperature"]
@@ -120,16 +134,7 @@ def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path,
     bag = BAGS / "ramp_500hz"
     config = ProcessConfig(diagnose=False, online=OnlineConfig(reconstruction=reconstruction))
     process(bag, tmp_path / "out", config)
-    node = CompensatorNode(
-        context=ros_context,
-        parameter_overrides=[
-            Parameter("use_sim_time", value=True),
-            Parameter("window_s", value=config.online.window_s),
-            Parameter("update_period_s", value=config.update_period_s),
-            Parameter("reconstruction", value=reconstruction),
-            Parameter("diagnosis_period_s", value=0.0),
-        ],
-    )
+    node = _offline_node(ros_context, config)
     try:
         node_stamps, node_gas, node_statuses = _drive_node(
             node, _messages(bag), config.batch_s, config.update_period_s
@@ -158,3 +163,73 @@ def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path,
                 assert value == live_value, key
     levels = {live.level[0] for _, live in node_statuses}
     assert levels == {0}  # the ramp fits: OK from the first report on
+
+
+@pytest.mark.slow
+def test_process_with_effects_equals_the_node_given_the_same_model(ros_context, tmp_path):
+    """``tcomp process --effects conduction`` and the node handed the model it fitted agree."""
+    from tcomp_core.process.output_model import fit_stream_output_model
+
+    bag = BAGS / "conduction_500hz"
+    config = ProcessConfig(
+        diagnose=False, effects="conduction", online=OnlineConfig(reconstruction="kalman")
+    )
+    result = process(bag, tmp_path / "out", config)
+    assert result.output_model["name"] == "first-order+conduction"
+    fitted = fit_stream_output_model(
+        bag,
+        ("conduction",),
+        topics=config.topics,
+        columns=config.columns,
+        samples=config.diagnose_samples,
+        slop_ns=0,
+        queue_size=config.queue_size,
+        valid_range=config.online.valid_range,
+        gap_factor=config.online.gap_factor,
+    )
+    assert fitted.model.params == result.output_model["params"]
+    node = _offline_node(ros_context, config)
+    try:
+        node.use_output_model(
+            fitted.model, fitted.origin_ns, fitted.record, note=fitted.note(config.effects)
+        )
+        node_stamps, node_gas, node_statuses = _drive_node(
+            node, _messages(bag), config.batch_s, config.update_period_s
+        )
+    finally:
+        node.destroy_node()
+    stamps, gas, statuses = _bag_outputs(tmp_path / "out")
+    assert stamps.size == 9999  # every pair of the 10 s record but the last
+    np.testing.assert_array_equal(stamps, node_stamps)
+    np.testing.assert_array_equal(gas, node_gas)  # bit for bit
+    assert len(statuses) == len(node_statuses) > 0
+    for (_, offline), (_, live) in zip(statuses, node_statuses, strict=True):
+        offline_values = {kv.key: kv.value for kv in offline.values}
+        live_values = {kv.key: kv.value for kv in live.values}
+        for key, value in offline_values.items():
+            if key.startswith("output_model"):
+                assert value == live_values[key], key
+    assert offline_values["output_model"] == "first-order+conduction"
+    assert offline_values["output_model_since"] == str(stamps[0])
+    # The compensated gas is far closer to the reference than first order's.
+    first = _bag_outputs_first_order(bag, tmp_path / "first", config)
+    truth = _reference(bag)[: gas.size]
+    later = slice(gas.size // 5, None)  # after the start-up of both
+    assert np.sqrt(np.mean((gas - truth)[later] ** 2)) < 0.5 * np.sqrt(
+        np.mean((first - truth)[later] ** 2)
+    )
+
+
+def _bag_outputs_first_order(bag: Path, out: Path, config: ProcessConfig) -> np.ndarray:
+    from dataclasses import replace
+
+    process(bag, out, replace(config, effects="none"))
+    return _bag_outputs(out)[1]
+
+
+def _reference(bag: Path) -> np.ndarray:
+    """The bag's reference, read half a sample on (the gas held over each interval)."""
+    from tcomp_core.io import read_record
+
+    ref = read_record(bag).ref
+    return 0.5 * (ref[:-1] + ref[1:])
