@@ -224,22 +224,34 @@ def _staircase_figure(steps: Sequence[ModelFit]) -> Figure:
 def _reconstruction_figure(diagnosis: Diagnosis) -> Figure:
     window = _zoom(diagnosis)
     time = diagnosis.time[window]
-    figure = Figure(figsize=(10, 4), layout="constrained")
-    ax = figure.subplots()
+    with_ref = diagnosis.ref is not None
+    figure = Figure(figsize=(10, 6.5 if with_ref else 4), layout="constrained")
+    axes = figure.subplots(2 if with_ref else 1, 1, sharex=True, squeeze=False)[:, 0]
+    ax = axes[0]
     _plot(ax, time, diagnosis.tc1[window], color="grey", linewidth=0.6, label="tc1 measured")
     _plot(ax, time, diagnosis.tc2[window], color="silver", linewidth=0.6, label="tc2 measured")
     if diagnosis.ref is not None:
         _plot(ax, time, diagnosis.ref[window], color="black", linewidth=1.6, label="reference")
     sigmas = (diagnosis.sigma1, diagnosis.sigma2)
-    if diagnosis.final.effects:
-        first = fused_gas(diagnosis.base, sigmas, diagnosis.dt)
-        _plot(ax, time, first[window], linewidth=0.8, label="gas, first order (fused)")
-    final = fused_gas(diagnosis.final, sigmas, diagnosis.dt)
-    _plot(ax, time, final[window], linewidth=0.9, label=f"gas, {_label(diagnosis.final)} (fused)")
-    ax.set(title="gas temperature: first order and the final model", xlabel="time (s)")
+    fits = [diagnosis.base, diagnosis.final] if diagnosis.final.effects else [diagnosis.final]
+    fused = [fused_gas(fit, sigmas, diagnosis.dt) for fit in fits]
+    names = [f"gas, {_label(fit)} (fused)" for fit in fits]
+    for gas, name in zip(fused, names, strict=True):
+        _plot(ax, time, gas[window], linewidth=0.8, label=name)
+    ax.set(title="gas temperature: first order and the final model")
     ax.set_ylabel("temperature (°C)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    if diagnosis.ref is not None:
+        # gas[k] holds over [t_k, t_k+1): the reference halfway through it.
+        ref = diagnosis.ref
+        halfway = np.append(0.5 * (ref[:-1] + ref[1:]), ref[-1])
+        for gas, name in zip(fused, names, strict=True):
+            _plot(axes[1], time, (gas - halfway)[window], linewidth=0.8, label=name)
+        axes[1].set(title="gas less the reference")
+        axes[1].set_ylabel("error (°C)")
+    axes[-1].set_xlabel("time (s)")
+    for item in axes:
+        item.grid(alpha=0.3)
+        item.legend(fontsize=8)
     return figure
 
 

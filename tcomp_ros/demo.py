@@ -2,12 +2,16 @@
 
 Both nodes run in this process on one executor, talking over DDS on localhost as they would in
 separate processes. Every diagnostics message of the compensator is printed as one line: level,
-τ1, τ2, fit and the message; at the end the estimates are compared with the bag's truth.
+τ1, τ2, fit, the model the published gas uses and the message. When the bag carries the true
+gas temperature (``tref/temperature``), the published gas is compared with it at the end, for
+each model it was published with (with ``compensate_effects:=true``: first order until the
+background fit lands, then the extended model).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import sys
 import time
@@ -38,6 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.parameter import Parameter
+    from sensor_msgs.msg import Temperature
 
     from tcomp_core.io import read_bag
 
@@ -61,6 +66,8 @@ def main(argv: list[str] | None = None) -> int:
         ],
     )
     last: dict[str, str] = {}
+    gas: dict[int, float] = {}
+    truth: dict[int, float] = {}
 
     def show(array: DiagnosticArray) -> None:
         status = array.status[0]
@@ -70,11 +77,20 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"[{LEVELS[status.level[0]]:>5}] tau1 = {values['tau1_s']:>9} s  "
             f"tau2 = {values['tau2_s']:>9} s  matched {values['matched']:>6}  "
-            f"fit {values['fit_error_pct']:>7} %  {status.message}",
+            f"fit {values['fit_error_pct']:>7} %  gas: {values['output_model']}  "
+            f"{status.message}",
             flush=True,
         )
 
+    def keep(into: dict[int, float], message: Temperature) -> None:
+        stamp = message.header.stamp
+        into[stamp.sec * 1_000_000_000 + stamp.nanosec] = message.temperature
+
     compensator.create_subscription(DiagnosticArray, "/diagnostics", show, 10)
+    compensator.create_subscription(Temperature, "gas_temperature", lambda m: keep(gas, m), 10000)
+    compensator.create_subscription(
+        Temperature, "tref/temperature", lambda m: keep(truth, m), 10000
+    )
     executor = make_executor(context)
     executor.add_node(compensator)
     executor.add_node(replay)
@@ -108,7 +124,36 @@ def main(argv: list[str] | None = None) -> int:
             f"final: tau1 = {last['tau1_s']} s, tau2 = {last['tau2_s']} s, "
             f"matched {last['matched']} pairs, published {last['published']} gas samples"
         )
+        since = last.get("output_model_since", "")
+        _compare(gas, truth, int(since) if since else None, last.get("output_model", ""))
     return 0
+
+
+def _compare(
+    gas: dict[int, float], truth: dict[int, float], since: int | None, model: str
+) -> None:
+    """Print the published gas's error against the reference, before and after a switch."""
+    import numpy as np
+
+    stamps = sorted(stamp for stamp in gas if stamp in truth)
+    if len(stamps) < 100:
+        return
+    # Element k is the gas held over [t_k, t_k+1): compare it with the mean of ref at both ends.
+    following = dict(itertools.pairwise(stamps))
+    pairs = [(s, gas[s], 0.5 * (truth[s] + truth[following[s]])) for s in stamps[:-1]]
+    parts = {"first order": [p for p in pairs if since is None or p[0] < since]}
+    if since is not None:
+        parts[model] = [p for p in pairs if p[0] >= since]
+    spread = float(np.std([ref for _, _, ref in pairs]))
+    for name, part in parts.items():
+        if len(part) < 50:
+            continue
+        errors = np.array([value - ref for _, value, ref in part])
+        print(
+            f"published gas, {name}: {len(part)} samples, rms error against the reference "
+            f"{100 * np.sqrt(np.mean(errors**2)) / spread:.3g} % of its spread, mean "
+            f"{np.mean(errors):+.3g} degC"
+        )
 
 
 def _parse(text: str) -> object:

@@ -268,3 +268,39 @@ def test_library_warnings_print_as_one_line_and_others_pass_through(monkeypatch,
         assert main(["estimate", "input.mcap"]) == 0
     line = "tcomp estimate: warning: input.mcap: cut off at byte 1234\n"
     assert capsys.readouterr().err == 2 * line
+
+
+@pytest.mark.slow
+def test_reconstruct_and_process_compensate_with_the_effects_asked_for(tmp_path, capsys):
+    from tcomp_core.io import write_csv
+    from tcomp_core.simulate_effects import simulate_effect
+
+    sim = simulate_effect("delay", "multisine", duration=6.0, noise_percent=1.0, seed=21)
+    data = tmp_path / "delayed.csv"
+    write_csv(data, sim.time, sim.tc1, sim.tc2, sim.gas)
+    report = tmp_path / "gas.json"
+    arguments = ["reconstruct", str(data), "-o", str(tmp_path / "gas.csv"), "--json", str(report)]
+    assert main([*arguments, "--effects", "delay", "--reconstruction", "kalman"]) == 0
+    printed = capsys.readouterr().out
+    assert "output model: first-order+delay" in printed
+    assert "delay: prior (only the delay between the sensors is seen" in printed
+    document = json.loads(report.read_text())
+    assert document["output_model"]["name"] == "first-order+delay"
+    assert document["output_model"]["params"]["delay_s"] == pytest.approx(0.008, rel=0.1)
+    errors = document["against_ref"]
+    assert errors["e_tg_pct"] < 0.5 * errors["e_tg_first_order_pct"]
+    gas = read_record(tmp_path / "gas.csv", columns=("tc1", "tc2", "gas"))
+    assert gas.tc1.size == sim.tc1.size - 1
+    # tcomp process publishes the same model's causal reconstruction.
+    out = tmp_path / "processed.csv"
+    assert main(["process", str(data), "-o", str(out), "--effects", "delay", "--no-diagnose"]) == 0
+    assert "gas published with first-order+delay" in capsys.readouterr().out
+    # Refusals name the problem.
+    assert main([*arguments, "--force"]) == 1
+    assert "--json describes the output model of --effects" in capsys.readouterr().err
+    assert main([*arguments, "--force", "--effects", "delay,smoke"]) == 1
+    assert "smoke" in capsys.readouterr().err
+    assert (
+        main([*arguments, "--force", "--effects", "auto", "--tau1", "0.02", "--tau2", "0.1"]) == 1
+    )
+    assert "--effects fits tau1 and tau2" in capsys.readouterr().err

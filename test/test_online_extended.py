@@ -55,7 +55,9 @@ def test_the_published_extended_gas_does_not_depend_on_the_batches(name):
     offline = reconstruct(tc1, tc2, sim.dt, model.tau1, model.tau2, phi=1.0).gas
     inner = slice(100, out_stamps.size)
     np.testing.assert_allclose(
-        gas[inner] - model.level_shift_c(), offline[: out_stamps.size][inner], atol=1e-6
+        gas[inner] - compensator.output.level_shift_c,
+        offline[: out_stamps.size][inner],
+        atol=1e-6,
     )
 
 
@@ -109,3 +111,23 @@ def test_a_gap_restarts_the_extended_stream_and_counts_what_it_drops():
     assert out_stamps.size == stamps.size - 2 * (1 + 22)
     assert compensator.counters["unreconstructed"] == 1 + 22
     assert compensator.output.lost == 22
+
+
+def test_a_refit_of_the_same_physics_keeps_since_and_another_model_restarts_it():
+    sim, stamps = _record()
+    compensator = OnlineCompensator(
+        OnlineConfig(reconstruction="difference"), initial_tau=(0.0238, 0.1168)
+    )
+    record = (stamps, sim.tc1, sim.tc2)
+    delay = model_with(*STREAM_MODELS["delay"], n=sim.tc1.size)
+    compensator.use_output_model(delay, ORIGIN_NS, record)
+    compensator.add_pairs(stamps[:1000], sim.tc1[:1000], sim.tc2[:1000])
+    since = compensator.output.since_ns
+    assert since == stamps[0]
+    compensator.use_output_model(delay, ORIGIN_NS, record)  # refitted: same effects
+    compensator.add_pairs(stamps[1000:2000], sim.tc1[1000:2000], sim.tc2[1000:2000])
+    assert compensator.output.since_ns == since
+    other = model_with(*STREAM_MODELS["conduction"], n=sim.tc1.size)
+    compensator.use_output_model(other, ORIGIN_NS, record)
+    compensator.add_pairs(stamps[2000:], sim.tc1[2000:], sim.tc2[2000:])
+    assert compensator.output.since_ns > stamps[1000]

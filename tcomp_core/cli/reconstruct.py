@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 
     from ..compensation import OutputModel
     from ..io import Record
+    from ..reconstruct import Reconstruction
 
 __all__ = ["add_parser", "run"]
 
@@ -74,6 +75,13 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
         "final model), a comma-separated list of effects to fit, or 'none' (default); tau1, "
         "tau2 are then fitted with the effects",
     )
+    parser.add_argument(
+        "--json",
+        type=Path,
+        metavar="FILE",
+        help="with --effects: write the output model (how each effect is treated, its "
+        "parameters and errors) and the errors against the ref signal as JSON",
+    )
     parser.add_argument("--png", type=Path, help="also plot the reconstruction to this PNG")
     add_force_argument(parser, "overwrite an existing output")
     parser.set_defaults(handler=run)
@@ -95,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
     if (args.tau1 is None) != (args.tau2 is None):
         raise TcompError("give both --tau1 and --tau2, or neither to estimate them")
     effects = parse_compensate_effects(args.effects)
+    if args.json is not None and effects == ():
+        raise TcompError("--json describes the output model of --effects: give --effects too")
     if effects != ():
         if args.tau1 is not None:
             raise TcompError("--effects fits tau1 and tau2 with the effects: drop --tau1/--tau2")
@@ -188,7 +198,7 @@ def _run_compensated(
     """``reconstruct --effects``: the output model fitted, the readings made first order."""
     import numpy as np
 
-    from ..compensation import compensate, equivalent_readings, fit_output_model
+    from ..compensation import compensate, equivalent_readings, fit_output_model, level_shift_c
     from ..estimators.mleiv import phi_from_data
     from ..reconstruct import reconstruct
 
@@ -202,18 +212,31 @@ def _run_compensated(
     if args.reconstruction == "difference":
         tc1, tc2 = equivalent_readings(model, record.time, record.tc1, record.tc2, record.dt)
         phi = args.phi if args.phi is not None else phi_from_data(tc1, tc2, record.dt)
-        recon = reconstruct(
-            tc1,
-            tc2,
+
+        def eq7(first: NDArray[np.float64], second: NDArray[np.float64]) -> Reconstruction:
+            return reconstruct(
+                first,
+                second,
+                record.dt,
+                model.tau1,
+                model.tau2,
+                phi=phi,
+                combine=args.combine,
+                postfilter_hz=args.postfilter_hz,
+                time=record.time,
+            )
+
+        recon = eq7(tc1, tc2)
+        shift = level_shift_c(
+            model,
+            recon.gas,
+            lambda first, second: eq7(first, second).gas,
+            record.time,
+            record.tc1,
+            record.tc2,
             record.dt,
-            model.tau1,
-            model.tau2,
-            phi=phi,
-            combine=args.combine,
-            postfilter_hz=args.postfilter_hz,
-            time=record.time,
         )
-        gas = recon.gas + model.level_shift_c()
+        gas = recon.gas + shift
     else:
         if args.postfilter_hz is not None or args.combine != "inverse-variance":
             raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
@@ -227,16 +250,19 @@ def _run_compensated(
             signal_model=args.signal_model,
             causal=causal,
         )
-        gas = result.gas[:count]
+        gas, shift = result.gas[:count], result.level_shift_c
         print(
             f"{args.reconstruction}: signal model {result.fusion.kind}; median std of the "
             f"estimate {np.median(result.std):.4g} degC"
         )
     written, ref = _write_gas(args, record, gas)
     print(f"wrote {written}: gas temperature at {gas.size} of {record.tc1.size} samples")
+    errors: dict[str, float] = {}
     if ref is not None:
         first = _first_order_gas(record, args, model.base_taus)[: gas.size]
-        _print_errors(record, model, first, gas, args.reconstruction)
+        errors = _print_errors(record, model, first, gas, args.reconstruction)
+    if args.json is not None:
+        _write_json(args, model, errors, shift)
     if args.png:
         _plot(args, record, gas, ref)
     return 0
@@ -248,7 +274,7 @@ def _print_errors(
     first: NDArray[np.float64],
     gas: NDArray[np.float64],
     reconstruction: str,
-) -> None:
+) -> dict[str, float]:
     """e_Tg and mean offset of the first-order and the compensated gas against the reference.
 
     Element k is the gas held over [t_k, t_k+1), so the reference is read half a sample on;
@@ -266,11 +292,18 @@ def _print_errors(
     keep = np.isfinite(truth)
     truth, first, gas = truth[keep], first[keep], gas[keep]
     errors = [reconstruction_error_percent(truth, values) for values in (first, gas)]
+    offsets = [float(np.mean(values - truth)) for values in (first, gas)]
     print(
         f"e_Tg ({reconstruction}) against the ref signal read half a sample on: "
         f"{errors[0]:.2f} % first order -> {errors[1]:.2f} % {model.name()}; mean offset "
-        f"gas - ref {np.mean(first - truth):+.3g} degC -> {np.mean(gas - truth):+.3g} degC"
+        f"gas - ref {offsets[0]:+.3g} degC -> {offsets[1]:+.3g} degC"
     )
+    found = {
+        "e_tg_first_order_pct": errors[0],
+        "e_tg_pct": errors[1],
+        "offset_first_order_c": offsets[0],
+        "offset_c": offsets[1],
+    }
     if 0.0 < model.band_hz < 0.5 / record.dt:
         sos = signal.butter(4, model.band_hz, output="sos", fs=1.0 / record.dt)
         low, *band = (signal.sosfiltfilt(sos, values) for values in (truth, first, gas))
@@ -280,6 +313,28 @@ def _print_errors(
             f"model, not the noise, decides): {errors[0]:.2f} % first order -> "
             f"{errors[1]:.2f} %"
         )
+        found |= {"e_tg_band_first_order_pct": errors[0], "e_tg_band_pct": errors[1]}
+    return found
+
+
+def _write_json(
+    args: argparse.Namespace, model: OutputModel, errors: dict[str, float], shift: float
+) -> None:
+    """``--json``: the output model, the level shift and the errors against the reference."""
+    import json
+
+    from ..io import atomic_output
+
+    document = {
+        "source": str(args.data),
+        "reconstruction": args.reconstruction,
+        "output_model": model.summary(),
+        "level_shift_c": shift,
+        "against_ref": errors,
+    }
+    with atomic_output(args.json, args.force, [args.data]) as temporary:
+        temporary.write_text(json.dumps(document, indent=2) + "\n")
+    print(f"json: {args.json}")
 
 
 def _first_order_gas(

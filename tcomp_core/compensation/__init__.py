@@ -8,7 +8,7 @@ sample, for the compensator node and ``tcomp process``.
 
 from __future__ import annotations
 
-from .offline import Compensated, compensate, equivalent_readings
+from .offline import Compensated, compensate, equivalent_readings, level_shift_c
 from .plan import (
     FIRST_ORDER,
     OutputModel,
@@ -26,6 +26,7 @@ __all__ = [
     "compensate",
     "equivalent_readings",
     "fit_output_model",
+    "level_shift_c",
     "output_model_from_diagnosis",
     "parse_compensate_effects",
 ]

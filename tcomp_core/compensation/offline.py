@@ -4,12 +4,14 @@ Each sensor's readings are turned into the readings a first-order sensor of the 
 would give of the same gas (:func:`~tcomp_core.effects.chain.first_order_reading`: the
 effects' stages undone, a non-first-order lag re-lagged); the first-order reconstructions then
 apply unchanged, the Kalman smoother or causal filter (:func:`tcomp_core.fusion.fuse`) with its
-signal model and standard deviation, or Eq. (7). The level rules of the output model
-(:meth:`~.plan.OutputModel.level_shift_c`) are applied last.
+signal model and standard deviation, or Eq. (7). With a calibration the level is moved
+last to the one the same reconstruction gives with the calibration left first order
+(:func:`level_shift_c`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,7 +22,7 @@ from ..fusion import FusionModel, FusionResult, fuse
 from ..fusion.signal_model import ModelChoice
 from .plan import OutputModel
 
-__all__ = ["Compensated", "compensate", "equivalent_readings"]
+__all__ = ["Compensated", "compensate", "equivalent_readings", "level_shift_c"]
 
 
 def equivalent_readings(
@@ -65,6 +67,8 @@ class Compensated:
     model : OutputModel
     readings : (ndarray, ndarray)
         The equivalent first-order readings, shape (N,) each.
+    level_shift_c : float
+        Degrees C added to keep the first-order level (a calibration; else 0).
     """
 
     gas: NDArray[np.float64]
@@ -72,6 +76,36 @@ class Compensated:
     fusion: FusionResult
     model: OutputModel
     readings: tuple[NDArray[np.float64], NDArray[np.float64]]
+    level_shift_c: float = 0.0
+
+
+def level_shift_c(
+    model: OutputModel,
+    gas: NDArray[np.float64],
+    reconstruct: Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]],
+    time: NDArray[np.float64],
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+) -> float:
+    """Degrees C that move ``gas`` to the first-order level when a calibration is applied.
+
+    Which sensor's calibration is right the two signals cannot tell, so the level stays the
+    first-order mix of both: ``reconstruct`` (the same reconstruction that made ``gas``, from
+    two equivalent readings) is run on the readings of the model with the calibration left
+    first order (:meth:`OutputModel.without_calibration`) and the mean difference returned.
+
+    Returns
+    -------
+    float
+        0 without an applied calibration.
+    """
+    if not model.keeps_first_order_level:
+        return 0.0
+    reference = reconstruct(*equivalent_readings(model.without_calibration(), time, tc1, tc2, dt))
+    count = min(gas.size, reference.size)
+    difference = reference[:count] - gas[:count]
+    return float(np.mean(difference[np.isfinite(difference)]))
 
 
 def compensate(
@@ -105,10 +139,22 @@ def compensate(
     fusion = fuse(
         readings[0], readings[1], dt, model.tau1, model.tau2, model=signal_model, causal=causal
     )
+    shift = level_shift_c(
+        model,
+        fusion.gas,
+        lambda first, second: (
+            fuse(first, second, dt, model.tau1, model.tau2, model=fusion.model, causal=causal).gas
+        ),
+        time,
+        tc1,
+        tc2,
+        dt,
+    )
     return Compensated(
-        gas=fusion.gas + model.level_shift_c(),
+        gas=fusion.gas + shift,
         std=fusion.std,
         fusion=fusion,
         model=model,
         readings=readings,
+        level_shift_c=shift,
     )

@@ -184,33 +184,35 @@ class OutputModel:
                 )
         return Model(applied, self.params).chains(self.context_for(time, dt))
 
-    def level_shift_c(self) -> float:
-        """Degrees C added to the gas on tc1's scale to keep the first-order level.
+    @property
+    def keeps_first_order_level(self) -> bool:
+        """Whether the gas must keep the first-order level (an applied calibration)."""
+        return "calibration" in self.applied()
+
+    def without_calibration(self) -> OutputModel:
+        """The model with the calibration left as first order has it (the level reference).
 
         With a calibration effect tc2 reads ``gain T + offset`` of tc1's scale; which one is
-        right the two signals cannot tell. A first-order reconstruction mixes the two levels
-        about as the inverse variances of the two sensors' reconstructions, 1/(σ_i τ_i)² (the
-        noise of Eq. 7 grows with τ/dt; the Kalman filter leans on the fast sensor alike), so
-        the gas is moved to that mix.
+        right the two signals cannot tell. A reconstruction of this model mixes the two
+        levels as the first-order one does (each reconstruction weighs them its own way: Eq. 7
+        by its combination weight, the Kalman filter by the noise at low frequency), so its
+        mean less the full model's is the shift that keeps the first-order level
+        (:func:`~.offline.level_shift_c`).
         """
-        if "calibration" not in self.applied():
-            return 0.0
-        w1, w2 = (
-            1.0 / (sigma * tau) ** 2
-            for sigma, tau in zip(self.sigmas, (self.tau1, self.tau2), strict=True)
+        pieces = tuple(
+            Piece(p.effect, "first order", "level reference") if p.effect == "calibration" else p
+            for p in self.pieces
         )
-        gain, offset = self.params["gain"], self.params["offset_c"]
-        return w2 / (w1 + w2) * ((gain - 1.0) * self.context.level_mean_c + offset)
+        return replace(self, pieces=pieces)
 
     def summary(self, causal_stream: bool = False) -> dict[str, Any]:
-        """JSON-ready: name, effects, parameters, pieces, level shift, errors, notes."""
+        """JSON-ready: name, effects, parameters, pieces, errors, notes."""
         pieces = self.stream_pieces() if causal_stream else self.pieces
         return {
             "name": self.name(causal_stream),
             "effects": list(self.effects),
             "params": {key: float(value) for key, value in self.params.items()},
             "pieces": [piece.summary() for piece in pieces],
-            "level_shift_c": self.level_shift_c(),
             "error_pct": _finite(self.error_pct),
             "base_error_pct": _finite(self.base_error_pct),
             "notes": list(self.notes),
@@ -221,9 +223,6 @@ class OutputModel:
         pieces = self.stream_pieces() if causal_stream else self.pieces
         lines = [f"output model: {self.name(causal_stream)}"]
         lines += [f"  {piece.effect}: {piece.handling} ({piece.reason})" for piece in pieces]
-        shift = self.level_shift_c()
-        if shift:
-            lines.append(f"  level moved {shift:+.3g} degC to the first-order mix of both sensors")
         return lines
 
 

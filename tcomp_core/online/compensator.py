@@ -147,6 +147,8 @@ class OnlineCompensator:
     ) -> GasBatch:
         """Publish the gas of ``model`` from the next pair on (None: back to first order).
 
+        A model with the same effects as the one in use (a refit) keeps its ``since_ns``.
+
         Parameters
         ----------
         model : OutputModel or None
@@ -169,7 +171,7 @@ class OnlineCompensator:
         ValueError
             Before the sample period is known, or without ``record`` for a model.
         """
-        self._extended = None
+        previous, self._extended = self._extended, None
         self._pending_output = None
         if model is None:
             return GasBatch.empty()
@@ -181,6 +183,8 @@ class OnlineCompensator:
         self._extended = ExtendedOutput(
             model, origin_ns, self._config, self._period, record, self._published_until
         )
+        if previous is not None and previous.model.name(True) == model.name(True):
+            self._extended.since_ns = previous.since_ns  # a refit of the same physics
         if prime is None or prime[0].size < 2:
             return GasBatch.empty()
         stamps, tc1, tc2 = prime

@@ -66,14 +66,28 @@ class ExtendedOutput:
     ) -> None:
         self.model = model
         self.origin_ns = int(origin_ns)
-        self.level_shift_c = model.level_shift_c()
         self._period = period_s
         self._stream = EquivalentStream(model, period_s, origin_ns)
-        fitted = EquivalentStream(model, period_s, origin_ns)
-        _, tc1, tc2 = fitted.push(*record)
+        stamps, tc1, tc2 = EquivalentStream(model, period_s, origin_ns).push(*record)
+        taus = (model.tau1, model.tau2)
+        segment = np.column_stack((tc1, tc2))
         self._reconstructor: DifferenceReconstructor | KalmanReconstructor = make_reconstructor(
-            config, period_s, (model.tau1, model.tau2), np.column_stack((tc1, tc2))
+            config, period_s, taus, segment
         )
+        #: Degrees C added to keep the first-order level (a calibration; else 0).
+        self.level_shift_c = 0.0
+        if model.keeps_first_order_level and stamps.size > 10:
+            # The same reconstruction of the fitted record with the calibration left first
+            # order: its mean level is the first-order mix of both sensors'
+            # (compensation.offline.level_shift_c does the same offline).
+            probe = make_reconstructor(config, period_s, taus, segment)
+            reference = EquivalentStream(model.without_calibration(), period_s, origin_ns)
+            steps = np.diff(stamps) * 1e-9
+            every = np.ones(steps.size, dtype=bool)
+            gas = probe.reconstruct(stamps, tc1, tc2, steps, every)[0]
+            level = probe.reconstruct(stamps, *reference.push(*record)[1:], steps, every)[0]
+            settled = slice(gas.size // 10, None)  # past the causal filter's start
+            self.level_shift_c = float(np.mean(level[settled] - gas[settled]))
         self._previous: tuple[int, float, float] | None = None
         self._last_taken = np.iinfo(np.int64).min
         self._published_until = int(published_until_ns)

@@ -103,7 +103,7 @@ def output_values(engine: OnlineCompensator) -> dict[str, str]:
         else str(output.since_ns),
         "output_model_tau1_s": format_value(model.tau1 if model else math.nan),
         "output_model_tau2_s": format_value(model.tau2 if model else math.nan),
-        "output_model_level_shift_c": format_value(model.level_shift_c() if model else 0.0),
+        "output_model_level_shift_c": format_value(output.level_shift_c if output else 0.0),
         "output_model_latency_samples": str(output.latency if output else 0),
         "output_model_pieces": "; ".join(f"{p.effect}: {p.handling}" for p in pieces),
         "output_model_note": engine.output_note,

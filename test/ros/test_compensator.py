@@ -415,3 +415,35 @@ def test_compensate_effects_switches_the_published_gas_to_the_diagnosed_model(ha
     found = values(h.next_diagnostics())
     assert found["output_model"] == "first-order"
     assert found["output_model_note"] == "compensate_effects is false"
+
+
+def test_a_fit_that_fails_the_checks_or_goes_stale_falls_back_to_first_order(harness):
+    from output_models import STREAM_MODELS, model_with
+
+    data = simulate_pair("multisine", noise_percent=1.0, duration=3.0, seed=3)
+    stamps = stamps_for(data.tc1.size, data.dt)
+    h = harness(window_s=2.0, update_period_s=0.2, compensate_effects=True, diagnosis_period_s=1.0)
+    h.feed(stamps[:1000], data.tc1[:1000], data.tc2[:1000])
+    node = h.node
+    model = model_with(*STREAM_MODELS["delay"], n=1000)
+    node._submitted = (None, (stamps[:1000], data.tc1[:1000], data.tc2[:1000]))
+    node._submitted_at = node._now()
+    fit = {"output_model": model, "error_pct": 1.0, "base_error_pct": 10.0, "at_bound": []}
+    node._accept_output(fit)
+    assert node.engine.compensator.output_model is model
+    node._accept_output({**fit, "error_pct": 9.0})  # a 10 % fall only: not significant
+    assert node.engine.compensator.output_model is None
+    assert "less than 20 %" in node.engine.compensator.output_note
+    node._accept_output({**fit, "at_bound": ["delay_s"]})
+    assert node.engine.compensator.output_model is None
+    assert "bound (delay_s)" in node.engine.compensator.output_note
+    node._accept_output(fit)
+    node._output_fitted_at = node._now() - 10.0  # three diagnosis periods of 1 s ago and more
+    node._check_output_age()
+    assert node.engine.compensator.output_model is None
+    assert node.engine.compensator.output_note.startswith("stale")
+    h.feed(stamps[1000:], data.tc1[1000:], data.tc2[1000:])  # first order publishes on
+    found = values(h.next_diagnostics())
+    assert found["output_model"] == "first-order" and found["output_model_note"].startswith(
+        "stale"
+    )
