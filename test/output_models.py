@@ -22,7 +22,6 @@ def model_with(
         effects=effects,
         params={"tau1": 0.0238, "tau2": 0.1168, **params},
         context=context,
-        sigmas=(0.2, 0.4),
         pieces=tuple(Piece(e, "compensated", "test") for e in effects),
     )
 

@@ -9,17 +9,16 @@ saying how the reconstruction treats it:
     the effect is undone (its stage of the sensor chain inverted);
 ``prior``
     undone, but a part the two signals cannot fix is set by a stated convention (a delay puts
-    the gas on tc1's clock);
+    the gas on tc1's clock; a calibration keeps the first-order level, since which sensor's
+    calibration is right cannot be seen);
 ``first order``
-    left as the first-order model has it: the data cannot fix what the reconstruction needs
-    (which sensor's calibration is right: the level stays the first-order fusion's mix of
-    both), the effect is of ordinary size (the sensors' expected physics, below materiality,
-    where compensating would trade a known small bias for the fit's uncertainty), or a causal
-    stream cannot apply it (a velocity profile known only over the fitted record, a film
-    temperature that needs the gas ahead).
+    left as the first-order model has it: the effect is of ordinary size (the sensors'
+    expected physics, below materiality, where compensating would trade a known small bias
+    for the fit's uncertainty), or a causal stream cannot apply it (a velocity profile known
+    only over the fitted record, a film temperature that needs the gas ahead).
 
-The rules are the "never worse" rule of issue 16: no piece that the data cannot fix is changed
-from first order without a stated prior.
+These are the "never worse" rules: no piece the data cannot fix moves from first order
+without a stated prior, and every output says which rule each effect followed.
 """
 
 from __future__ import annotations
@@ -92,8 +91,6 @@ class OutputModel:
         Its parameters: ``tau1``, ``tau2`` (s) and the effects' own.
     context : FitContext
         The fit's context at its working rate (level, knot spacing, film cut-off, time base).
-    sigmas : (float, float)
-        Noise standard deviations of the readings the model was fitted to, degrees C.
     pieces : tuple of Piece
         One per effect: how the reconstruction treats it.
     error_pct : float
@@ -116,7 +113,6 @@ class OutputModel:
     effects: tuple[str, ...]
     params: Mapping[str, float]
     context: FitContext
-    sigmas: tuple[float, float] = (1.0, 1.0)
     pieces: tuple[Piece, ...] = ()
     error_pct: float = math.nan
     base_error_pct: float = math.nan
@@ -288,7 +284,6 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         effects=tuple(final.effects),
         params=dict(final.params),
         context=diagnosis.context,
-        sigmas=(diagnosis.sigma1, diagnosis.sigma2),
         pieces=pieces,
         error_pct=float(final.error_pct),
         base_error_pct=float(diagnosis.base.error_pct),
