@@ -14,9 +14,18 @@ when the parameter ``effects`` changes) the longest gap-free stretch of the wind
 in a worker process
 (:class:`~tcomp_core.diagnose.background.BackgroundDiagnoser`): the base model plus the requested
 effects is fitted and, when the fit is poor or effects were requested, the effect the base model
-misses most is looked for. The diagnostics carry the held-out errors with and without the
-effects and the top suspect; the published reconstruction stays first-order. A model that fits
-is not diagnosed: a job costs seconds of CPU, which a 2-core machine feels in the latency.
+misses most is looked for (``effects: auto``: the whole diagnosis, its final model). The
+diagnostics carry the held-out errors with and without the effects and the top suspect. A model
+that fits is not diagnosed: a job costs seconds of CPU, which a 2-core machine feels in the
+latency.
+
+With ``compensate_effects`` the newest gap-free pairs (with their stamps) are diagnosed instead,
+and a fit that lands with an effect a stream can apply, no parameter on a bound and a held-out
+error at least :data:`MIN_ERROR_FALL` below first order's becomes the published model
+(:meth:`tcomp_core.online.OnlineCompensator.use_output_model`, primed on the newest pairs so
+that no stamp is skipped or repeated); a later fit that fails, a fit older than :data:`OUTPUT_STALE_PERIODS`
+diagnosis periods, or ``compensate_effects: false`` return to first order. The ``output_model``
+keys of the diagnostics say which model the gas uses, since when and why.
 
 Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
 (:func:`tcomp_core.io.decode_message`, the one Temperature codec, with its rosbags fallback), and
