@@ -23,9 +23,10 @@ With ``compensate_effects`` the newest gap-free pairs (with their stamps) are di
 and a fit that lands with an effect a stream can apply, no parameter on a bound and a held-out
 error at least :data:`MIN_ERROR_FALL` below first order's becomes the published model
 (:meth:`tcomp_core.online.OnlineCompensator.use_output_model`, primed on the newest pairs so
-that no stamp is skipped or repeated); a later fit that fails, a fit older than :data:`OUTPUT_STALE_PERIODS`
-diagnosis periods, or ``compensate_effects: false`` return to first order. The ``output_model``
-keys of the diagnostics say which model the gas uses, since when and why.
+that no stamp is skipped or repeated); a later fit that fails, a fit older than
+:data:`OUTPUT_STALE_PERIODS` diagnosis periods, or ``compensate_effects: false`` return to first
+order. The ``output_model`` keys of the diagnostics say which model the gas uses, since when
+and why.
 
 Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
 (:func:`tcomp_core.io.decode_message`, the one Temperature codec, with its rosbags fallback), and
