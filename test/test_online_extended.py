@@ -131,3 +131,23 @@ def test_a_refit_of_the_same_physics_keeps_since_and_another_model_restarts_it()
     compensator.use_output_model(other, ORIGIN_NS, record)
     compensator.add_pairs(stamps[2000:], sim.tc1[2000:], sim.tc2[2000:])
     assert compensator.output.since_ns > stamps[1000]
+
+
+def test_a_discontinuity_or_a_new_reconstruction_keeps_the_output_model():
+    from dataclasses import replace
+
+    sim, stamps = _record()
+    compensator = OnlineCompensator(
+        OnlineConfig(reconstruction="difference"), initial_tau=(0.0238, 0.1168)
+    )
+    model = model_with(*STREAM_MODELS["conduction"], n=sim.tc1.size)
+    compensator.use_output_model(model, ORIGIN_NS, (stamps, sim.tc1, sim.tc2))
+    first = compensator.add_pairs(stamps[:1000], sim.tc1[:1000], sim.tc2[:1000])
+    compensator.restart()  # the stamps start over (a bag played again)
+    again = compensator.add_pairs(stamps[:1000], sim.tc1[:1000], sim.tc2[:1000])
+    np.testing.assert_array_equal(again.stamps_ns, first.stamps_ns)
+    np.testing.assert_allclose(again.gas, first.gas)
+    compensator.reconfigure(replace(compensator.config, reconstruction="kalman"))
+    assert compensator.output_model is model
+    later = compensator.add_pairs(stamps[1000:], sim.tc1[1000:], sim.tc2[1000:])
+    assert later.stamps_ns[0] == stamps[999] and np.all(later.variance > 0)  # Kalman now

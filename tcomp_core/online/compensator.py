@@ -166,10 +166,12 @@ class OnlineCompensator:
         GasBatch
             Gas the priming completed that was not published yet (publish it).
 
+        Before the sample period is known the model waits for it (:attr:`output_model`).
+
         Raises
         ------
         ValueError
-            Before the sample period is known, or without ``record`` for a model.
+            Without ``record`` for a model.
         """
         previous, self._extended = self._extended, None
         self._pending_output = None
@@ -216,7 +218,7 @@ class OnlineCompensator:
         self._restarted = True
         self._published_until = np.iinfo(np.int64).min  # the stamps start over
         if self._extended is not None:
-            self._extended.restart()
+            self._extended.restart(stamps_start_over=True)
 
     def reconfigure(self, config: OnlineConfig) -> None:
         """Apply new settings, keeping the window's samples where they still fit."""
@@ -231,6 +233,12 @@ class OnlineCompensator:
             old.postfilter_order,
         ):
             self._postfilter = None
+        extended = self._extended
+        if extended is not None and (config.reconstruction, config.signal_model) != (
+            old.reconstruction,
+            old.signal_model,
+        ):  # the same model, reconstructed the new way from the next pair on
+            self.use_output_model(extended.model, extended.origin_ns, extended.record)
         if self._tau is None or self._period is None:
             return
         reconstructor = self._reconstructor

@@ -49,6 +49,8 @@ class ExtendedOutput:
 
     Attributes
     ----------
+    record : (ndarray, ndarray, ndarray)
+        The fitted record, as given.
     lost : int
         Pairs dropped at gaps before their equivalent pair was complete.
     since_ns : int or None
@@ -66,6 +68,7 @@ class ExtendedOutput:
     ) -> None:
         self.model = model
         self.origin_ns = int(origin_ns)
+        self.record = record
         self._period = period_s
         self._stream = EquivalentStream(model, period_s, origin_ns)
         stamps, tc1, tc2 = EquivalentStream(model, period_s, origin_ns).push(*record)
@@ -105,12 +108,18 @@ class ExtendedOutput:
         reconstructor = self._reconstructor
         return reconstructor.error if isinstance(reconstructor, KalmanReconstructor) else ""
 
-    def restart(self) -> None:
-        """Forget the stream (a discontinuity of the stamps)."""
+    def restart(self, stamps_start_over: bool = False) -> None:
+        """Forget the stream: at a gap, or (``stamps_start_over``) a discontinuity of the stamps.
+
+        After a discontinuity the stamps may repeat earlier ones: gas is published again from
+        the next pair on.
+        """
         self.lost += self._stream.pending
         self._stream.reset()
         self._previous = None
         self._last_taken = np.iinfo(np.int64).min
+        if stamps_start_over:
+            self._published_until = np.iinfo(np.int64).min
 
     def reconstruct(
         self,
