@@ -377,6 +377,11 @@ class HealthMonitor:
             status=status,
             max_model_error_pct=max_model_error_pct,
         )
+        model = engine.output_model
+        if level == Level.WARN and status is not None and status.poor_fit and model is not None:
+            # The first-order window estimate still fits poorly; the published gas does not
+            # rely on it.
+            message += f"; the published gas uses {model.name(causal_stream=True)}"
         notes = self._input_notes(counters, malformed_reasons)
         if notes:
             # Never hidden behind an OK: at least a WARN, appended to any other message.
