@@ -22,7 +22,10 @@ def model_with(
         effects=effects,
         params={"tau1": 0.0238, "tau2": 0.1168, **params},
         context=context,
-        pieces=tuple(Piece(e, "compensated", "test") for e in effects),
+        # As the rules have them: a calibration keeps the first-order level.
+        pieces=tuple(
+            Piece(e, "dynamics" if e == "calibration" else "compensated", "test") for e in effects
+        ),
     )
 
 

@@ -209,3 +209,48 @@ def test_radiation_is_corrected_in_level_not_only_in_dynamics():
     assert first_offset < -5.0  # the wires read low: they radiate to the colder wall
     assert abs(offset) < 0.1 * abs(first_offset)
     assert math.isfinite(offset)
+
+
+def _diagnosis_with(effects, intervals, expected=()):
+    """The parts of a Diagnosis that output_model_from_diagnosis reads."""
+    from types import SimpleNamespace
+
+    fit = SimpleNamespace(
+        effects=effects,
+        params={"tau1": 0.02, "tau2": 0.1},
+        intervals=intervals,
+        error_pct=1.0,
+        tau1=0.02,
+        tau2=0.1,
+    )
+    return SimpleNamespace(
+        source="test",
+        context=model_with((), {}).context,
+        final=fit,
+        base=SimpleNamespace(error_pct=10.0, tau1=0.02, tau2=0.1),
+        expected_physics=list(expected),
+        eval_cutoff_hz=50.0,
+        identifiability=[],
+    )
+
+
+def test_the_rules_say_how_each_effect_is_treated():
+    from tcomp_core.compensation import output_model_from_diagnosis
+
+    established = {"rho1": (0.0, 0.2), "rho2": (0.04, 0.29)}
+    unknown = {"rho1": (0.0, 0.02), "rho2": (0.0, 0.05)}
+    cases = [
+        (("radiation",), established, (), "compensated"),
+        (("radiation",), unknown, (), "dynamics"),
+        (("calibration",), {}, (), "dynamics"),
+        (("delay",), {}, (), "prior"),
+        (("conduction",), {}, (), "compensated"),
+        (("property",), {}, ("property",), "first order"),
+    ]
+    for effects, intervals, expected, handling in cases:
+        model = output_model_from_diagnosis(_diagnosis_with(effects, intervals, expected))
+        assert model.pieces[0].handling == handling, (effects, intervals)
+        assert model.keeps_first_order_level == (handling == "dynamics")
+        assert model.level_reference().applied() == (
+            effects if handling in ("compensated", "prior") else ()
+        )

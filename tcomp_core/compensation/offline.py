@@ -4,9 +4,9 @@ Each sensor's readings are turned into the readings a first-order sensor of the 
 would give of the same gas (:func:`~tcomp_core.effects.chain.first_order_reading`: the
 effects' stages undone, a non-first-order lag re-lagged); the first-order reconstructions then
 apply unchanged, the Kalman smoother or causal filter (:func:`tcomp_core.fusion.fuse`) with its
-signal model and standard deviation, or Eq. (7). With a calibration the level is moved
-last to the one the same reconstruction gives with the calibration left first order
-(:func:`level_shift_c`).
+signal model and standard deviation, or Eq. (7). Where the data do not fix the level (a
+``dynamics`` piece: a calibration, an unestablished radiation level) it is moved last to the
+one the same reconstruction gives with that effect left first order (:func:`level_shift_c`).
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ class Compensated:
     readings : (ndarray, ndarray)
         The equivalent first-order readings, shape (N,) each.
     level_shift_c : float
-        Degrees C added to keep the first-order level (a calibration; else 0).
+        Degrees C added to keep the first-order level (a ``dynamics`` piece; else 0).
     """
 
     gas: NDArray[np.float64]
@@ -88,21 +88,22 @@ def level_shift_c(
     tc2: NDArray[np.float64],
     dt: float,
 ) -> float:
-    """Degrees C that move ``gas`` to the first-order level when a calibration is applied.
+    """Degrees C that move ``gas`` to the first-order level (a ``dynamics`` piece applied).
 
-    Which sensor's calibration is right the two signals cannot tell, so the level stays the
-    first-order mix of both: ``reconstruct`` (the same reconstruction that made ``gas``, from
-    two equivalent readings) is run on the readings of the model with the calibration left
-    first order (:meth:`OutputModel.without_calibration`) and the mean difference returned.
+    Which sensor's calibration is right the two signals cannot tell, nor a radiation level
+    whose ratios are within their intervals of 0, so the level stays first order's:
+    ``reconstruct`` (the same reconstruction that made ``gas``, from
+    two equivalent readings) is run on the readings of the model with those effects left
+    first order (:meth:`OutputModel.level_reference`) and the mean difference returned.
 
     Returns
     -------
     float
-        0 without an applied calibration.
+        0 without a ``dynamics`` piece.
     """
     if not model.keeps_first_order_level:
         return 0.0
-    reference = reconstruct(*equivalent_readings(model.without_calibration(), time, tc1, tc2, dt))
+    reference = reconstruct(*equivalent_readings(model.level_reference(), time, tc1, tc2, dt))
     count = min(gas.size, reference.size)
     difference = reference[:count] - gas[:count]
     return float(np.mean(difference[np.isfinite(difference)]))

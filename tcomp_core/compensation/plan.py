@@ -9,8 +9,12 @@ saying how the reconstruction treats it:
     the effect is undone (its stage of the sensor chain inverted);
 ``prior``
     undone, but a part the two signals cannot fix is set by a stated convention (a delay puts
-    the gas on tc1's clock; a calibration keeps the first-order level, since which sensor's
-    calibration is right cannot be seen);
+    the gas on tc1's clock);
+``dynamics``
+    undone for the dynamics, the level kept at what the same reconstruction gives with the
+    effect left first order: a calibration (which sensor's calibration is right cannot be
+    seen), a radiation whose ratios rho1, rho2 are both within their 95 % intervals of 0 (the
+    data do not fix the radiation level);
 ``first order``
     left as the first-order model has it: the effect is of ordinary size (the sensors'
     expected physics, below materiality, where compensating would trade a known small bias
@@ -65,7 +69,7 @@ class Piece:
     Attributes
     ----------
     effect : str
-    handling : {'compensated', 'prior', 'first order'}
+    handling : {'compensated', 'prior', 'dynamics', 'first order'}
     reason : str
         Why, in words.
     """
@@ -182,21 +186,19 @@ class OutputModel:
 
     @property
     def keeps_first_order_level(self) -> bool:
-        """Whether the gas must keep the first-order level (an applied calibration)."""
-        return "calibration" in self.applied()
+        """Whether the gas keeps the first-order level (a ``dynamics`` piece is applied)."""
+        return any(piece.handling == "dynamics" for piece in self.pieces)
 
-    def without_calibration(self) -> OutputModel:
-        """The model with the calibration left as first order has it (the level reference).
+    def level_reference(self) -> OutputModel:
+        """The model with its ``dynamics`` pieces left first order: the level to keep.
 
-        With a calibration effect tc2 reads ``gain T + offset`` of tc1's scale; which one is
-        right the two signals cannot tell. A reconstruction of this model mixes the two
-        levels as the first-order one does (each reconstruction weighs them its own way: Eq. 7
-        by its combination weight, the Kalman filter by the noise at low frequency), so its
-        mean less the full model's is the shift that keeps the first-order level
-        (:func:`~.offline.level_shift_c`).
+        A reconstruction of this model mixes the levels as the first-order one does (each
+        reconstruction weighs the sensors its own way: Eq. 7 by its combination weight, the
+        Kalman filter by the noise at low frequency), so its mean less the full model's is the
+        shift that keeps the first-order level (:func:`~.offline.level_shift_c`).
         """
         pieces = tuple(
-            Piece(p.effect, "first order", "level reference") if p.effect == "calibration" else p
+            Piece(p.effect, "first order", "level reference") if p.handling == "dynamics" else p
             for p in self.pieces
         )
         return replace(self, pieces=pieces)
@@ -226,7 +228,7 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def _piece(effect: str, expected: bool) -> Piece:
+def _piece(effect: str, expected: bool, intervals: Mapping[str, tuple[float, float]]) -> Piece:
     if expected:
         return Piece(
             effect,
@@ -243,11 +245,19 @@ def _piece(effect: str, expected: bool) -> Piece:
     if effect == "calibration":
         return Piece(
             effect,
-            "prior",
+            "dynamics",
             "which sensor's calibration is right cannot be seen: the dynamics use both on tc1's "
-            "scale, the level is kept at the first-order fusion's mix of both",
+            "scale, the level stays first order's",
         )
     if effect == "radiation":
+        lows = [intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
+        if max(lows) <= 0.0:
+            return Piece(
+                effect,
+                "dynamics",
+                "neither wire's radiative ratio rho is told from 0 (95 % intervals reach 0): "
+                "the data do not fix the radiation level, which stays first order's",
+            )
         return Piece(effect, "compensated", "the steady radiation error of each wire is removed")
     if effect == "conduction":
         return Piece(
@@ -279,7 +289,7 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         raise ValueError(f"{diagnosis.source}: the diagnosis carries no fit context")
     final = diagnosis.final
     expected = set(diagnosis.expected_physics)
-    pieces = tuple(_piece(effect, effect in expected) for effect in final.effects)
+    pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
     return OutputModel(
         effects=tuple(final.effects),
         params=dict(final.params),

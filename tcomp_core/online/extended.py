@@ -77,14 +77,14 @@ class ExtendedOutput:
         self._reconstructor: DifferenceReconstructor | KalmanReconstructor = make_reconstructor(
             config, period_s, taus, segment
         )
-        #: Degrees C added to keep the first-order level (a calibration; else 0).
+        #: Degrees C added to keep the first-order level (a ``dynamics`` piece; else 0).
         self.level_shift_c = 0.0
         if model.keeps_first_order_level and stamps.size > 10:
-            # The same reconstruction of the fitted record with the calibration left first
-            # order: its mean level is the first-order mix of both sensors'
-            # (compensation.offline.level_shift_c does the same offline).
+            # The same reconstruction of the fitted record with the level-setting effects left
+            # first order gives the level to keep (compensation.offline.level_shift_c does
+            # the same offline).
             probe = make_reconstructor(config, period_s, taus, segment)
-            reference = EquivalentStream(model.without_calibration(), period_s, origin_ns)
+            reference = EquivalentStream(model.level_reference(), period_s, origin_ns)
             steps = np.diff(stamps) * 1e-9
             every = np.ones(steps.size, dtype=bool)
             gas = probe.reconstruct(stamps, tc1, tc2, steps, every)[0]
