@@ -718,7 +718,8 @@ class CompensatorNode(Node):
                 None, f"parameters on a bound ({', '.join(result['at_bound'])}); {where}"
             )
         elif not error <= (1.0 - MIN_ERROR_FALL) * base:
-            self._set_output(None, f"the effects lower the error by less than 20 %; {where}")
+            fall = f"{100 * MIN_ERROR_FALL:g} %"
+            self._set_output(None, f"the effects lower the error by less than {fall}; {where}")
         else:
             self._output_fitted_at = self._submitted_at
             self._set_output(model, where, int(record[0][0]), record)
