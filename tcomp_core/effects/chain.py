@@ -287,19 +287,7 @@ def gas_from_reading(
         Variance of ``gas`` per unit variance of white noise on the readings.
     """
     lagged, weights, edges = _lagged_temperature(chain, reading, dt)
-    junction_k = lagged[:-1] + KELVIN
-    # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
-    a: NDArray[np.float64] | float = (
-        replace(chain, level_exponent=0.0).poles(reading.size, dt)
-        if chain.factor is not None
-        else math.exp(-dt / chain.tau)
-    )
-    gas, tap = _invert_lag(chain, lagged, a, junction_k)
-    for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
-        # τ follows the film temperature, halfway between the junction and the gas: the
-        # implicit inverse by fixed-point steps from the constant-τ gas.
-        a = chain.poles(reading.size, dt, 0.5 * (junction_k + _film_gas(chain, gas) + KELVIN))
-        gas, tap = _invert_lag(chain, lagged, a, junction_k)
+    gas, a, tap = _lag_inverse(chain, lagged, dt)
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
     # The noise of u[k] is (1/gain)/(1 - a) (n[k+1] - c n[k]), c = a less the radiation term's
@@ -311,6 +299,26 @@ def gas_from_reading(
     energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
     noise_gain = energy / (chain.gain * (1.0 - a)) ** 2
     return gas, np.broadcast_to(noise_gain, gas.shape)
+
+
+def _lag_inverse(
+    chain: SensorChain, lagged: NDArray[np.float64], dt: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | float, NDArray[np.float64] | float]:
+    """Gas from the lag's output (shape (N,) -> (N - 1,)), the poles used and the noise tap."""
+    junction_k = lagged[:-1] + KELVIN
+    # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
+    a: NDArray[np.float64] | float = (
+        replace(chain, level_exponent=0.0).poles(lagged.size, dt)
+        if chain.factor is not None
+        else math.exp(-dt / chain.tau)
+    )
+    gas, tap = _invert_lag(chain, lagged, a, junction_k)
+    for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
+        # τ follows the film temperature, halfway between the junction and the gas: the
+        # implicit inverse by fixed-point steps from the constant-τ gas.
+        a = chain.poles(lagged.size, dt, 0.5 * (junction_k + _film_gas(chain, gas) + KELVIN))
+        gas, tap = _invert_lag(chain, lagged, a, junction_k)
+    return gas, a, tap
 
 
 def _lagged_temperature(
@@ -369,7 +377,7 @@ def first_order_reading(
     lagged = _lagged_temperature(chain, reading, dt)[0]
     if not (chain.r or chain.factor is not None or chain.level_exponent):
         return lagged
-    gas = _fill_edges(gas_from_reading(chain, reading, dt)[0])
+    gas = _lag_inverse(chain, lagged, dt)[0]  # the delay's ends are filled in ``lagged``
     # At rest, the gas equals the lag's output plus the radiation loss at that temperature.
     loss = chain.r * ((lagged[0] + KELVIN) ** 4 - chain.wall_k**4) if chain.r else 0.0
     return reading_from_gas(SensorChain(tau=chain.tau), gas, dt, float(lagged[0] + loss))
