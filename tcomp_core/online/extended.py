@@ -11,6 +11,7 @@ own stamp; gas already published (by first order, before the switch) is not publ
 from __future__ import annotations
 
 import itertools
+from collections import deque
 from collections.abc import Sequence
 
 import numpy as np
@@ -209,7 +210,8 @@ class RecentPairs:
 
     def __init__(self, capacity: int) -> None:
         self.capacity = capacity
-        self.parts: list[tuple[NDArray, ...]] = []
+        # Batches of a few pairs each: a deque drops the oldest in O(1).
+        self.parts: deque[tuple[NDArray, ...]] = deque()
         self.size = 0
 
     def add(self, *columns: NDArray) -> None:
@@ -219,7 +221,7 @@ class RecentPairs:
         self.parts.append(columns)
         self.size += int(columns[0].size)
         while self.size - self.parts[0][0].size >= self.capacity:
-            self.size -= self.parts.pop(0)[0].size
+            self.size -= self.parts.popleft()[0].size
 
     def columns(self) -> list[NDArray]:
         """The kept pairs, oldest first: stamps then the values, shape (n,) each."""
