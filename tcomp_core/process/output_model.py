@@ -10,6 +10,7 @@ the compensator node publishes once it is handed the model.
 from __future__ import annotations
 
 import time
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,16 +77,19 @@ def fit_stream_output_model(
     matcher = PairMatcher(slop_ns=slop_ns, queue_size=queue_size, valid_range=valid_range)
     parts: list[Pairs] = []
     matched = 0
-    for block in open_stream(source, topics=topics, columns=columns):
-        for role, index in (("tc1", 0), ("tc2", 1)):
-            batch = block.series.get(role)
-            if batch is not None and len(batch):
-                pairs = matcher.add_batch(index, batch.stamps_ns, batch.temperature)
-                if len(pairs):
-                    parts.append(pairs)
-                    matched += len(pairs)
-        if matched >= samples:
-            break
+    blocks = iter(open_stream(source, topics=topics, columns=columns))
+    # Leaving the reading early closes it at once (its read-ahead thread and files).
+    with closing(blocks):  # type: ignore[type-var]  # a generator has close()
+        for block in blocks:
+            for role, index in (("tc1", 0), ("tc2", 1)):
+                batch = block.series.get(role)
+                if batch is not None and len(batch):
+                    pairs = matcher.add_batch(index, batch.stamps_ns, batch.temperature)
+                    if len(pairs):
+                        parts.append(pairs)
+                        matched += len(pairs)
+            if matched >= samples:
+                break
     if not parts:
         raise DataError(f"{source}: no tc1/tc2 pairs to fit the output model on")
     pairs = Pairs.concatenate(parts)
