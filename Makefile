@@ -39,11 +39,12 @@ demo: $(STAMP)
 	@echo
 	@echo "== ROS 2: replay bags/rig_sine_5khz (5 kHz) into the compensator node =="
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(PY) -m tcomp_ros.demo --bag bags/rig_sine_5khz \
-		--param update_period_s:=0.25
+		--ros-args --params-file config/compensator.yaml
 	@echo
 	@echo "== ROS 2: replay bags/conduction_500hz (hidden conduction) with compensate_effects =="
 	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(PY) -m tcomp_ros.demo --bag bags/conduction_500hz \
-		--param effects:=auto --param compensate_effects:=true --param diagnosis_period_s:=5.0
+		--ros-args --params-file config/compensator.yaml \
+		-p effects:=auto -p compensate_effects:=true -p diagnosis_period_s:=5.0
 
 bench: $(STAMP)
 	$(PY) bench/bench_startup.py

@@ -9,24 +9,13 @@ parameters to config (validated in the on-set callback, applied in the post-set 
 timers; every time the engine sees is the node's clock (``now``), so ``use_sim_time`` works and
 ``tcomp process`` (which passes stamp time) reads the same.
 
-Every ``diagnosis_period_s`` while the first-order fit is poor or effects are set (and at once
-when the parameter ``effects`` changes) the longest gap-free stretch of the window is diagnosed
-in a worker process
-(:class:`~tcomp_core.diagnose.background.BackgroundDiagnoser`): the base model plus the requested
-effects is fitted and, when the fit is poor or effects were requested, the effect the base model
-misses most is looked for (``effects: auto``: the whole diagnosis, its final model). The
-diagnostics carry the held-out errors with and without the effects and the top suspect. A model
-that fits is not diagnosed: a job costs seconds of CPU, which a 2-core machine feels in the
-latency.
-
-With ``compensate_effects`` the newest gap-free pairs (with their stamps) are diagnosed instead,
-and a fit that lands with an effect a stream can apply, no parameter on a bound and a held-out
-error at least :data:`MIN_ERROR_FALL` below first order's becomes the published model
-(:meth:`tcomp_core.online.OnlineCompensator.use_output_model`, primed on the newest pairs so
-that no stamp is skipped or repeated); a later fit that fails, a fit older than
-:data:`OUTPUT_STALE_PERIODS` diagnosis periods, or ``compensate_effects: false`` return to first
-order. The ``output_model`` keys of the diagnostics say which model the gas uses, since when
-and why.
+The published gas is the causal Kalman filter of both sensors by default
+(``reconstruction: kalman``): its signal model is fitted in a worker process
+(:class:`~tcomp_core.workers.ProcessRunner`) and handed over warm, so the stream never waits for
+a fit. The background diagnosis (every ``diagnosis_period_s`` while the first-order fit is poor
+or ``effects`` is set) and the output models it yields with ``compensate_effects`` follow the
+engine's rules (:mod:`tcomp_core.online.diagnosis`), as ``tcomp process`` does; the node only
+ticks them on its timers.
 
 Subscriptions take serialized messages (``raw=True``) decoded by a fixed-layout codec
 (:func:`tcomp_core.io.decode_message`, the one Temperature codec, with its rosbags fallback), and
@@ -61,27 +50,16 @@ from rclpy.timer import Timer
 from sensor_msgs.msg import Temperature
 
 from tcomp_core.compensation import OutputModel
-from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
-from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
-from tcomp_core.estimators import DEFAULT_METHOD, METHODS
 from tcomp_core.io import Encoder, decode_message
-from tcomp_core.online import (
-    DIAGNOSTICS_PERIOD_S,
-    RECONSTRUCT_FROM,
-    RECONSTRUCTIONS,
-    SIGNAL_MODELS,
-    Engine,
-    GasBatch,
-    Health,
-    Level,
-    OnlineConfig,
-)
+from tcomp_core.online import DIAGNOSTICS_PERIOD_S, Engine, GasBatch, Health, OnlineConfig
 from tcomp_core.online.health import format_value as _fmt
+from tcomp_core.parameters import PARAMETERS, ParameterSpec
+from tcomp_core.workers import InlineRunner, ProcessRunner
 
 from .spin import spin_until_shutdown
 
-__all__ = ["CompensatorNode", "main"]
+__all__ = ["CompensatorNode", "descriptor", "main"]
 
 #: Period of the timer that drains the inbox, match pairs and publishes, seconds.
 PROCESS_PERIOD_S = 0.005
@@ -95,20 +73,6 @@ INPUT_RELIABILITY = {
 OUTPUT_QOS = QoSProfile(
     depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
 )
-#: The background diagnosis needs a gap-free stretch of the window this long, seconds ...
-MIN_DIAGNOSIS_S = 2.0
-#: ... holding at least this many samples.
-MIN_DIAGNOSIS_SAMPLES = 1000
-#: A job diagnoses at most the newest this many seconds of it (its cost grows with the length).
-MAX_DIAGNOSIS_S = 60.0
-#: Shortest period of the background diagnosis, seconds (a job takes seconds anyway).
-MIN_DIAGNOSIS_PERIOD_S = 1.0
-#: A fit compensates the published gas when it lowers the held-out error by this share ...
-MIN_ERROR_FALL = 0.2
-#: ... and until it is this many diagnosis periods old without a newer accepted fit.
-OUTPUT_STALE_PERIODS = 3.0
-#: Pairs run through a new output model before it takes over (its filters warm up).
-PRIME_PAIRS = 2000
 
 
 def _float_range(low: float, high: float) -> list[FloatingPointRange]:
@@ -116,208 +80,18 @@ def _float_range(low: float, high: float) -> list[FloatingPointRange]:
     return [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
 
 
-def _descriptor(description: str, **kwargs) -> ParameterDescriptor:
-    return ParameterDescriptor(description=description, **kwargs)
-
-
-PARAMETERS: dict[str, tuple[object, ParameterDescriptor]] = {
-    "window_s": (
-        2.0,
-        _descriptor("estimation window length, s", floating_point_range=_float_range(0.05, 3600)),
-    ),
-    "update_period_s": (
-        0.5,
-        _descriptor("period of re-estimation, s", floating_point_range=_float_range(0.01, 60)),
-    ),
-    "method": (
-        DEFAULT_METHOD,
-        _descriptor("estimator", additional_constraints=f"one of {', '.join(METHODS)}"),
-    ),
-    "phi": (
-        1.0,
-        _descriptor(
-            "noise variance ratio sigma1^2/sigma2^2", floating_point_range=_float_range(1e-6, 1e6)
-        ),
-    ),
-    "prefilter_hz": (
-        0.0,
-        _descriptor(
-            "zero-phase pre-filter on the window before estimation, Hz (0 = off)",
-            floating_point_range=_float_range(0.0, 1e6),
-        ),
-    ),
-    "postfilter_hz": (
-        0.0,
-        _descriptor(
-            "causal Butterworth low-pass on gas_temperature, Hz (0 = off)",
-            floating_point_range=_float_range(0.0, 1e6),
-        ),
-    ),
-    "sync_slop_s": (
-        0.0,
-        _descriptor(
-            "largest stamp difference of a tc1/tc2 pair, s (0 = exact stamps)",
-            floating_point_range=_float_range(0.0, 1.0),
-        ),
-    ),
-    "reconstruct_from": (
-        "fused",
-        _descriptor(
-            "which reconstruction is published",
-            additional_constraints=f"one of {', '.join(RECONSTRUCT_FROM)}",
-        ),
-    ),
-    "reconstruction": (
-        "difference",
-        _descriptor(
-            "'difference': Eq. (7) per sensor, combined by reconstruct_from; 'kalman': causal "
-            "Kalman filter of both sensors, its signal model fitted on the window (the "
-            "published variance is then its own)",
-            additional_constraints=f"one of {', '.join(RECONSTRUCTIONS)}",
-        ),
-    ),
-    "signal_model": (
-        "random-walk",
-        _descriptor(
-            "gas temperature model of the Kalman filter; 'auto' fits all (~1.5 s per refit "
-            "on the estimation timer, against ~0.1 s for one)",
-            additional_constraints=f"one of {', '.join(SIGNAL_MODELS)}",
-        ),
-    ),
-    "tracking_memory_s": (
-        0.0,
-        _descriptor(
-            "forgetting time of a tau that changes with the flow, s: tau from an exponentially "
-            "forgetting beta-GTLS with tau1/tau2 held to its long-term value (0 = the window)",
-            floating_point_range=_float_range(0.0, 3600),
-        ),
-    ),
-    "hardware_id": ("thermocouple-pair", _descriptor("hardware_id of the diagnostic status")),
-    "sample_period_s": (
-        0.0,
-        _descriptor(
-            "sample period of the pairs, s (0 = learn from the stamps)",
-            floating_point_range=_float_range(0.0, 10.0),
-        ),
-    ),
-    "silence_timeout_s": (
-        1.0,
-        _descriptor(
-            "a sensor silent this long is an ERROR, s",
-            floating_point_range=_float_range(0.01, 3600),
-        ),
-    ),
-    "max_condition": (
-        1e3,
-        _descriptor(
-            "estimates with a larger condition figure are refused",
-            floating_point_range=_float_range(1.0, 1e12),
-        ),
-    ),
-    "max_model_error_pct": (
-        10.0,
-        _descriptor(
-            "model error above which the fit is poor (WARN), percent",
-            floating_point_range=_float_range(0.01, 1000),
-        ),
-    ),
-    "queue_size": (
-        2000,
-        _descriptor(
-            "unmatched samples kept per input",
-            integer_range=[IntegerRange(from_value=1, to_value=10**6, step=1)],
-        ),
-    ),
-    "frame_id": ("", _descriptor("frame_id of gas_temperature ('' = that of tc1)")),
-    "input_reliability": (
-        "best_effort",
-        _descriptor(
-            "reliability of the tc1/tc2 subscriptions: best_effort receives from best-effort "
-            "and reliable publishers alike, reliable from reliable ones only (read at start)",
-            additional_constraints=f"one of {', '.join(INPUT_RELIABILITY)}",
-            read_only=True,
-        ),
-    ),
-    "min_temperature_c": (
-        -273.15,
-        _descriptor(
-            "readings below are invalid (counted, reported, left out), degrees C",
-            floating_point_range=_float_range(-273.15, 1e6),
-        ),
-    ),
-    "max_temperature_c": (
-        2000.0,
-        _descriptor(
-            "readings above are invalid (counted, reported, left out), degrees C",
-            floating_point_range=_float_range(-273.15, 1e6),
-        ),
-    ),
-    "max_window_samples": (
-        500_000,
-        _descriptor(
-            "memory budget of the window in sample pairs (48 bytes each): a window_s that "
-            "needs more at sample_period_s is refused, a learnt period clips the window",
-            integer_range=[IntegerRange(from_value=100, to_value=10**8, step=1)],
-        ),
-    ),
-    "discontinuity_s": (
-        10.0,
-        _descriptor(
-            "stamps this far behind the last matched one, several in a row, restart the "
-            "window (a clock reset or a bag starting over), s",
-            floating_point_range=_float_range(0.001, 1e9),
-        ),
-    ),
-    "effects": (
-        "",
-        _descriptor(
-            "effects the background diagnosis adds to the first-order model, comma-separated "
-            "('' = none), or 'auto' (the diagnosis's final model); they change the diagnosis "
-            "and the error it reports, and with compensate_effects the published gas",
-            additional_constraints=f"'auto' or names from {', '.join(EFFECT_NAMES)}, each at "
-            "most once",
-        ),
-    ),
-    "compensate_effects": (
-        False,
-        _descriptor(
-            "publish gas_temperature compensated with the background fit of effects once it "
-            "lands, lowers the held-out error by 20 % with no parameter on a bound, and while "
-            "it is fresh (3 diagnosis periods); first order otherwise (see output_model in "
-            "/diagnostics)"
-        ),
-    ),
-    "diagnosis_period_s": (
-        10.0,
-        _descriptor(
-            "period of the background diagnosis of the window while the fit is poor or "
-            "effects is set, s (0 = only when effects changes); one job at a time, each "
-            "taking seconds in a worker process",
-            floating_point_range=_float_range(0.0, 3600),
-            additional_constraints=f"0 or >= {MIN_DIAGNOSIS_PERIOD_S:g}",
-        ),
-    ),
-}
-
-#: Parameters that configure the numerical engine (tcomp_core.online.OnlineConfig).
-ENGINE_PARAMETERS = (
-    "window_s",
-    "method",
-    "phi",
-    "prefilter_hz",
-    "postfilter_hz",
-    "reconstruct_from",
-    "reconstruction",
-    "signal_model",
-    "tracking_memory_s",
-    "sample_period_s",
-    "max_condition",
-    "max_model_error_pct",
-    "min_temperature_c",
-    "max_temperature_c",
-    "max_window_samples",
-    "discontinuity_s",
-)
+def descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+    """The ROS descriptor of a declared parameter: description, range, choices, read-only."""
+    extra: dict[str, Any] = {}
+    if spec.kind is float and spec.low is not None and spec.high is not None:
+        extra["floating_point_range"] = _float_range(spec.low, spec.high)
+    if spec.kind is int and spec.low is not None and spec.high is not None:
+        extra["integer_range"] = [
+            IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
+        ]
+    if spec.choices:
+        extra["additional_constraints"] = f"one of {', '.join(spec.choices)}"
+    return ParameterDescriptor(description=spec.description, read_only=spec.read_only, **extra)
 
 
 class CompensatorNode(Node):
@@ -327,23 +101,27 @@ class CompensatorNode(Node):
     ----------
     node_name : str
         Node name ('compensator').
+    background : bool
+        Fit the Kalman filter's signal model and run the diagnoses in worker processes (the
+        default, so the stream never waits); False runs them inline, at the stamp where they
+        are asked for, as ``tcomp process`` does (a replay that must match it sample for
+        sample).
     **kwargs
         Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ``namespace``).
     """
 
-    def __init__(self, node_name: str = "compensator", **kwargs) -> None:
+    def __init__(self, node_name: str = "compensator", background: bool = True, **kwargs) -> None:
         super().__init__(node_name, **kwargs)
-        for name, (default, descriptor) in PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
-        self._values = {name: self.get_parameter(name).value for name in PARAMETERS}
+        for spec in PARAMETERS:
+            self.declare_parameter(spec.name, spec.default, descriptor(spec))
+        self._values = {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS}
+        fits = ProcessRunner() if background else None
+        diagnoses = ProcessRunner() if background else InlineRunner()
         self._engine = Engine(
-            self._engine_config(self._values),
-            slop_ns=round(float(self._values["sync_slop_s"]) * 1e9),
-            queue_size=int(self._values["queue_size"]),
-            update_period_s=float(self._values["update_period_s"]),
-            silence_timeout_s=float(self._values["silence_timeout_s"]),
+            OnlineConfig.from_parameters(self._values), runner=fits, diagnosis_runner=diagnoses
         )
-        self._effects = self._diagnosis_effects(self._values)
+        if fits is not None and self._values["reconstruction"] == "kalman":
+            fits.start()  # its imports take a second or two: ready by the first τ
         # Per input: stamps (ns) and values of the messages not yet handed to the engine.
         self._inbox: list[tuple[list[int], list[float]]] = [([], []), ([], [])]
         self._received = [0, 0]
@@ -351,15 +129,6 @@ class CompensatorNode(Node):
         self._callback_errors = 0
         self._last_callback_error = ""
         self._latency = LatencyHistogram()
-        self._diagnoser = BackgroundDiagnoser()
-        self._diagnosis: dict[str, Any] = {}  # the latest successful diagnosis
-        self._diagnosis_error = ""
-        self._diagnosis_at = math.nan  # when the data of that diagnosis were taken (clock, s)
-        self._submitted_at = math.nan
-        self._submitted: tuple[tuple[str, ...] | None, tuple | None] = ((), None)
-        self._output_fitted_at = math.nan  # when the data of the output model were taken
-        # Start a job as soon as the window is long enough and the worker free.
-        self._diagnosis_wanted = self._effects_set
 
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -391,20 +160,11 @@ class CompensatorNode(Node):
         self._start_diagnosis_timer()
 
     def destroy_node(self) -> None:
-        """Stop the diagnosis worker (abandoning a running job), then destroy the node."""
-        self._diagnoser.close()
+        """Stop the worker processes (abandoning running jobs), then destroy the node."""
+        self._engine.close()
         super().destroy_node()
 
     # -- state -------------------------------------------------------------------------------
-    @property
-    def _effects_set(self) -> bool:
-        """Whether effects (or ``auto``) are asked for."""
-        return self._effects is None or bool(self._effects)
-
-    @property
-    def _compensating(self) -> bool:
-        return bool(self._values["compensate_effects"])
-
     @property
     def engine(self) -> Engine:
         """The online engine (read it, do not feed it: the node's callbacks do)."""
@@ -415,27 +175,16 @@ class CompensatorNode(Node):
         """Messages received per input, ``(tc1, tc2)``, whether handed to the engine yet or not."""
         return self._received[0], self._received[1]
 
+    @property
+    def matched_pairs(self) -> int:
+        """Sample pairs matched so far."""
+        return self._engine.counters.matched
+
     def _now(self) -> float:
         """The node's clock, seconds (ROS time: simulated time under ``use_sim_time``)."""
         return self.get_clock().now().nanoseconds * 1e-9
 
     # -- parameters --------------------------------------------------------------------------
-    @staticmethod
-    def _engine_config(values: dict[str, Any]) -> OnlineConfig:
-        return OnlineConfig(**{name: values[name] for name in ENGINE_PARAMETERS})
-
-    @staticmethod
-    def _diagnosis_effects(values: dict[str, Any]) -> tuple[str, ...] | None:
-        """The requested effects (None: ``auto``); ValueError on a bad name or period."""
-        period = float(values["diagnosis_period_s"])
-        if 0.0 < period < MIN_DIAGNOSIS_PERIOD_S:
-            raise ValueError(
-                f"diagnosis_period_s={period!r} must be 0 (no periodic diagnosis) or "
-                f">= {MIN_DIAGNOSIS_PERIOD_S} s"
-            )
-        text = str(values["effects"]).strip()
-        return None if text == "auto" else parse_effects(text)
-
     def _start_diagnosis_timer(self) -> None:
         """(Re)create the timer of the periodic diagnosis; none when the period is 0."""
         if self._diagnosis_timer is not None:
@@ -445,27 +194,18 @@ class CompensatorNode(Node):
         period = float(self._values["diagnosis_period_s"])
         if period > 0.0:
             self._diagnosis_timer = self.create_timer(
-                period, lambda: self._guarded("diagnosis", self._periodic_diagnosis)
+                period,
+                lambda: self._guarded(
+                    "diagnosis", lambda: self._engine.periodic_diagnosis(self._now())
+                ),
             )
-
-    def _periodic_diagnosis(self) -> None:
-        """Diagnose while the first-order fit is poor or effects are set; else spare the CPU.
-
-        A job costs the worker seconds of CPU and the node the copy of the window; on a small
-        machine that shows in the publish latency, for nothing when the model fits.
-        """
-        self._check_output_age()
-        status = self._engine.last_status
-        if self._effects_set or (status is not None and status.poor_fit):
-            self.start_diagnosis()
 
     def _validate_parameters(self, parameters: Sequence[Parameter]) -> SetParametersResult:
         """On-set callback: accept a change only when every value is sound, as a whole."""
         values = dict(self._values)
         values.update({parameter.name: parameter.value for parameter in parameters})
         try:
-            self._engine_config(values)
-            self._diagnosis_effects(values)
+            OnlineConfig.from_parameters(values)
         except (ValueError, TypeError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -476,17 +216,9 @@ class CompensatorNode(Node):
         values.update({parameter.name: parameter.value for parameter in parameters})
         changed = {name for name in values if values[name] != self._values[name]}
         self._values = values
-        if changed & set(ENGINE_PARAMETERS):
-            self._engine.reconfigure(self._engine_config(values))
-        if changed & {"sync_slop_s", "queue_size"}:
-            self._engine.set_matching(
-                round(float(values["sync_slop_s"]) * 1e9), int(values["queue_size"])
-            )
-        if changed & {"update_period_s", "silence_timeout_s"}:
-            self._engine.set_timing(
-                float(values["update_period_s"]), float(values["silence_timeout_s"])
-            )
-        effects = self._diagnosis_effects(values)
+        if not changed:
+            return
+        self._engine.reconfigure(OnlineConfig.from_parameters(values))
         if "update_period_s" in changed:
             self._estimate_timer.cancel()
             self.destroy_timer(self._estimate_timer)
@@ -495,16 +227,12 @@ class CompensatorNode(Node):
             )
         if "diagnosis_period_s" in changed:
             self._start_diagnosis_timer()
-        if "compensate_effects" in changed and not self._compensating:
-            self._set_output(None, "compensate_effects is false")
-        if effects != self._effects or ("compensate_effects" in changed and self._compensating):
-            self._effects = effects
-            self._diagnosis_wanted = True
-            self.start_diagnosis()
-        if changed:
-            self.get_logger().info(
-                "parameters changed: " + ", ".join(f"{n}={values[n]!r}" for n in sorted(changed))
-            )
+        if self._engine.diagnosis.wanted:
+            self._engine.diagnosis.start(self._now(), self._engine.compensator)
+        self._flush_log()
+        self.get_logger().info(
+            "parameters changed: " + ", ".join(f"{n}={values[n]!r}" for n in sorted(changed))
+        )
 
     # -- data path ---------------------------------------------------------------------------
     def _on_sample(self, index: int, data: bytes) -> None:
@@ -562,9 +290,6 @@ class CompensatorNode(Node):
             if stamps:
                 self._inbox[index] = ([], [])
                 engine.add_samples(index, stamps, values, now)
-        period = engine.compensator.period_s
-        if self._compensating and period and engine.recent is None:
-            engine.keep_recent(round(MAX_DIAGNOSIS_S / period))
         try:
             out = engine.reconstruct()
         except DataError as exc:  # never die on data: count, report, carry on
@@ -592,78 +317,9 @@ class CompensatorNode(Node):
             inputs = out.stamps_ns + round(period * 1e9)
             self._latency.add((time.time_ns() - inputs) * 1e-6)
 
-    @property
-    def matched_pairs(self) -> int:
-        """Sample pairs matched so far."""
-        return self._engine.counters.matched
-
     def update_estimate(self) -> None:
         """Re-estimate τ1, τ2 now (the timer calls this every ``update_period_s``)."""
         self._guarded("estimate", lambda: self._engine.update_estimate(self._now()))
-
-    # -- background diagnosis ----------------------------------------------------------------
-    def _diagnosis_segment(self) -> np.ndarray | None:
-        """The window's longest gap-free stretch, shape (n, 2), if long enough to diagnose.
-
-        At most its newest :data:`MAX_DIAGNOSIS_S` seconds; degrees C.
-        """
-        period = self._engine.compensator.period_s
-        if not period:
-            return None
-        longest = self._engine.compensator.longest_segment()
-        needed = max(MIN_DIAGNOSIS_SAMPLES, round(MIN_DIAGNOSIS_S / period))
-        if longest.shape[0] < needed:
-            return None
-        return longest[-max(needed, round(MAX_DIAGNOSIS_S / period)) :]
-
-    def start_diagnosis(self) -> bool:
-        """Diagnose the window in the background now (the timer calls this periodically).
-
-        Returns
-        -------
-        bool
-            Whether a job started; not while one runs or the window is too short.
-        """
-        self._collect_diagnosis()  # a finished job's result belongs to the previous submit
-        record = self._output_record() if self._compensating else None
-        segment = np.column_stack(record[1:]) if record is not None else self._diagnosis_segment()
-        if segment is None or self._diagnoser.busy:
-            return False
-        period = float(self._engine.compensator.period_s or math.nan)
-        status = self._engine.last_status
-        try:
-            started = self._diagnoser.submit(
-                np.arange(segment.shape[0]) * period,
-                segment[:, 0],
-                segment[:, 1],
-                period,
-                effects=self._effects,
-                find_suspect=self._effects_set or bool(status and status.poor_fit),
-                output=record is not None,
-            )
-        except Exception as exc:  # never die for the diagnosis (e.g. no worker could start)
-            self._diagnosis_error = f"{type(exc).__name__}: {exc}"
-            self.get_logger().warning(
-                f"diagnosis not started: {self._diagnosis_error}", throttle_duration_sec=60.0
-            )
-            return False
-        if started:
-            self._submitted_at = self._now()
-            self._submitted = (self._effects, record)
-            self._diagnosis_wanted = False
-        return started
-
-    def _output_record(self) -> tuple | None:
-        """The newest gap-free pairs with stamps (at most MAX_DIAGNOSIS_S), if long enough."""
-        engine = self._engine
-        period = engine.compensator.period_s
-        if not period or engine.recent is None or engine.recent.size == 0:
-            return None
-        stamps, tc1, tc2 = engine.recent.newest(engine.compensator.config.gap_factor)
-        needed = max(MIN_DIAGNOSIS_SAMPLES, round(MIN_DIAGNOSIS_S / period))
-        if stamps.size < needed:
-            return None
-        return stamps, tc1, tc2
 
     # -- the published model ------------------------------------------------------------------
     def use_output_model(
@@ -673,105 +329,24 @@ class CompensatorNode(Node):
         record: tuple | None = None,
         note: str = "",
     ) -> None:
-        """Publish the gas of ``model`` from now on (None: first order), saying why in ``note``.
+        """Publish the gas of ``model`` once it is built (None: first order), saying why.
 
-        The background fit calls this; a caller may hand a model fitted elsewhere (e.g. the
-        one ``tcomp process --effects`` fitted), with the stamps of its record's first sample.
+        A caller may hand a model fitted elsewhere (e.g. the one ``tcomp process --effects``
+        fitted), with the stamps of its record's first sample; it is not judged (see
+        :meth:`tcomp_core.online.diagnosis.DiagnosisPolicy.adopt` for that).
         """
-        self._set_output(model, note, origin_ns, record)
-
-    def _set_output(
-        self,
-        model: OutputModel | None,
-        note: str,
-        origin_ns: int = 0,
-        record: tuple | None = None,
-    ) -> None:
         compensator = self._engine.compensator
-        prime = None
-        recent = self._engine.recent
-        if model is not None and recent is not None and recent.size:
-            stamps, tc1, tc2 = recent.newest(compensator.config.gap_factor)
-            prime = (stamps[-PRIME_PAIRS:], tc1[-PRIME_PAIRS:], tc2[-PRIME_PAIRS:])
-        was = compensator.output_model
-        self._publish(compensator.use_output_model(model, origin_ns, record, prime))
+        compensator.use_output_model(model, origin_ns, record)
         compensator.output_note = note
-        if model is not None or was is not None:
-            name = model.name(causal_stream=True) if model is not None else "first-order"
-            self.get_logger().info(f"published gas now uses {name}: {note}")
 
-    def _accept_output(self, result: dict[str, Any]) -> None:
-        """Use a landed background fit for the published gas if it passes, else first order."""
-        model = result.get("output_model")
-        _, record = self._submitted
-        if model is None or record is None:
-            return
-        error, base = float(result["error_pct"]), float(result["base_error_pct"])
-        where = (
-            f"fit of {record[0].size} pairs: held-out error {error:.3g} % ({base:.3g} % "
-            "first order)"
-        )
-        if not model.applied(causal_stream=True):
-            self._set_output(None, f"no effect to compensate; {where}")
-        elif result["at_bound"]:
-            self._set_output(
-                None, f"parameters on a bound ({', '.join(result['at_bound'])}); {where}"
-            )
-        elif not error <= (1.0 - MIN_ERROR_FALL) * base:
-            fall = f"{100 * MIN_ERROR_FALL:g} %"
-            self._set_output(None, f"the effects lower the error by less than {fall}; {where}")
-        else:
-            self._output_fitted_at = self._submitted_at
-            self._set_output(model, where, int(record[0][0]), record)
-
-    def _check_output_age(self) -> None:
-        """Back to first order when the output model's fit is stale."""
-        period = float(self._values["diagnosis_period_s"])
-        if self._engine.compensator.output_model is None or period <= 0.0:
-            return
-        age = self._now() - self._output_fitted_at
-        if age > OUTPUT_STALE_PERIODS * period:
-            self._set_output(None, f"stale: the last accepted fit is {age:.3g} s old")
-
-    def _collect_diagnosis(self) -> None:
-        """Take a finished job's result, if any."""
-        result = self._diagnoser.poll()
-        if result is not None and "error" in result:
-            self._diagnosis_error = str(result["error"])
-            self.get_logger().warning(
-                f"diagnosis failed: {self._diagnosis_error}", throttle_duration_sec=60.0
-            )
-        elif result is not None:
-            result["requested"] = self._submitted[0]
-            self._diagnosis = result
-            self._diagnosis_error = ""
-            self._diagnosis_at = self._submitted_at
-            if self._compensating:
-                self._accept_output(result)
-            self.get_logger().info(
-                f"diagnosis of {result['samples']} samples in {result['seconds']:.1f} s: "
-                f"error {result['base_error_pct']:.3g} % (base), {result['error_pct']:.3g} % "
-                f"(effects: {', '.join(result['effects']) or 'none'}); top suspect "
-                f"{result['top_suspect']}"
-            )
-
-    def _diagnosis_values(self, now: float) -> dict[str, str]:
-        """Key-values of the latest diagnosis (NaN or 'none' until one is known)."""
-        result = self._diagnosis
-        # Held-out error and τ with the effects only from a job that fitted the current ones.
-        fitted = result if result.get("requested", ()) == self._effects and result else {}
-        return {
-            "effects": "auto" if self._effects is None else ",".join(self._effects) or "none",
-            "effects_error_pct": _fmt(fitted.get("error_pct", math.nan)),
-            "base_error_pct": _fmt(result.get("base_error_pct", math.nan)),
-            "effects_tau1_s": _fmt(fitted.get("tau1", math.nan)),
-            "effects_tau2_s": _fmt(fitted.get("tau2", math.nan)),
-            "top_suspect": str(result.get("top_suspect", "none")),
-            "top_suspect_error_pct": _fmt(result.get("top_suspect_error_pct", math.nan)),
-            "diagnosis_age_s": _fmt(now - self._diagnosis_at),
-            "diagnosis_duration_s": _fmt(result.get("seconds", math.nan)),
-            "diagnosis_error": self._diagnosis_error,
-        }
+    def _flush_log(self) -> None:
+        """Log what the engine's diagnosis did since the last call."""
+        log, self._engine.diagnosis.log = self._engine.diagnosis.log, []
+        for level, message in log:
+            if level == "warning":
+                self.get_logger().warning(message, throttle_duration_sec=60.0)
+            else:
+                self.get_logger().info(message)
 
     # -- diagnostics -------------------------------------------------------------------------
     def health_status(self, new_period: bool = False) -> DiagnosticStatus:
@@ -782,23 +357,16 @@ class CompensatorNode(Node):
         new_period : bool
             Start a new report period (the diagnostics timer does).
         """
-        now = self._now()
         extra = {
-            **self._diagnosis_values(now),
             **self._latency.summary(),
             "callback_errors": str(self._callback_errors),
             "last_callback_error": self._last_callback_error,
         }
-        health: Health = self._engine.report(now, extra, new_period=new_period)
-        message = health.message
-        status = self._engine.last_status
-        suspect = health.values["top_suspect"]
-        if health.level == Level.WARN and status and status.poor_fit and suspect != "none":
-            message += f"; top suspect: {suspect}"
+        health: Health = self._engine.report(self._now(), extra, new_period=new_period)
         return DiagnosticStatus(
             level=bytes([int(health.level)]),
             name=f"tcomp: {self.get_name()}",
-            message=message,
+            message=health.message,
             hardware_id=str(self._values["hardware_id"]),
             values=[KeyValue(key=key, value=value) for key, value in health.values.items()],
         )
@@ -806,14 +374,11 @@ class CompensatorNode(Node):
     def publish_diagnostics(self) -> None:
         """Publish the status on /diagnostics and start a new report period.
 
-        Also collects a finished diagnosis and starts one that was asked for while the worker
-        was busy or the window too short.
+        Also ticks the engine's diagnosis: collects a finished job, starts one that was asked
+        for while the worker was busy or the window too short.
         """
-        if self._diagnosis_wanted:
-            self.start_diagnosis()
-        else:
-            self._collect_diagnosis()
-        self._check_output_age()
+        self._engine.poll_diagnosis(self._now())
+        self._flush_log()
         status = self.health_status(new_period=True)
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from tcomp_core.bundled import bundled_bag
+from tcomp_core.parameters import PARAMETERS
 
 __all__ = ["main"]
 
@@ -26,17 +27,17 @@ LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 
 def main(argv: list[str] | None = None) -> int:
     """Replay ``--bag`` at ``--rate`` into a compensator; print its diagnostics."""
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = argparse.ArgumentParser(
+        description=__doc__,
+        epilog="Compensator parameters follow as ROS arguments, the current way: "
+        "--ros-args --params-file config/compensator.yaml -p update_period_s:=0.25",
+    )
     parser.add_argument("--bag", type=Path, default=bundled_bag("rig_sine_5khz"))
     parser.add_argument("--rate", type=float, default=1.0, help="replay speed factor")
-    parser.add_argument(
-        "--param",
-        action="append",
-        default=[],
-        metavar="NAME:=VALUE",
-        help="compensator parameter, repeatable (e.g. prefilter_hz:=200.0)",
-    )
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    split = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
+    args = parser.parse_args(argv[:split])
+    ros_args = ["tcomp_demo", *argv[split:]]
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
     import rclpy
@@ -52,14 +53,18 @@ def main(argv: list[str] | None = None) -> int:
 
     record = read_bag(args.bag)
     context = rclpy.context.Context()
-    rclpy.init(context=context, domain_id=int(os.environ.get("ROS_DOMAIN_ID", "42")))
-    overrides = []
-    for item in args.param:
-        name, _, text = item.partition(":=")
-        overrides.append(Parameter(name, value=_parse(text)))
-    compensator = CompensatorNode(context=context, parameter_overrides=overrides)
+    rclpy.init(
+        args=ros_args, context=context, domain_id=int(os.environ.get("ROS_DOMAIN_ID", "42"))
+    )
+    compensator = CompensatorNode(context=context)
+    parameters = {spec.name: compensator.get_parameter(spec.name).value for spec in PARAMETERS}
+    print(
+        "compensator: reconstruction {reconstruction} (signal model {signal_model}), method "
+        "{method}, window {window_s:g} s, update every {update_period_s:g} s".format(**parameters)
+    )
     replay = ReplayNode(
         context=context,
+        use_global_arguments=False,  # the compensator's parameters are not the replay's
         parameter_overrides=[
             Parameter("bag", value=str(args.bag)),
             Parameter("rate", value=float(args.rate)),
@@ -154,15 +159,6 @@ def _compare(
             f"{100 * np.sqrt(np.mean(errors**2)) / spread:.3g} % of its spread, mean "
             f"{np.mean(errors):+.3g} degC"
         )
-
-
-def _parse(text: str) -> object:
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return {"true": True, "false": False}.get(text.lower(), text)
 
 
 if __name__ == "__main__":

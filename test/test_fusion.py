@@ -300,3 +300,115 @@ def test_invalid_arguments_are_refused():
         fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, sigma1=-1.0)
     with pytest.raises(ValueError):
         fuse(pair.tc1, pair.tc2[:-1], pair.dt, pair.tau1, pair.tau2)
+
+
+# -- the steady-state filter at compiled speed; fallbacks of the signal model -------------------
+def _plain_reference(model, tc1, tc2, exact_steps):
+    """The causal Kalman filter written out plainly: one sample at a time, full covariance;
+    the time-varying gain for ``exact_steps`` samples, then the steady-state one."""
+    from tcomp_core.fusion import steady_state
+
+    space = model.state_space()
+    f, h, q, r, c = (
+        space.transition,
+        space.observation,
+        space.covariance,
+        space.noise,
+        space.output,
+    )
+    steady = steady_state(space).gain
+    state = np.zeros(f.shape[0])
+    m = f.shape[0] - 2
+    state[0], state[m:] = tc1[0], (tc1[0], tc2[0])
+    predicted = np.diag(space.prior_std**2)
+    identity = np.eye(f.shape[0])
+    gas = []
+    for k in range(tc1.size):
+        innovation = np.array([tc1[k], tc2[k]]) - h @ state
+        gain = predicted @ h.T @ np.linalg.inv(h @ predicted @ h.T + r)
+        if k >= exact_steps:
+            gain = steady
+        state = state + gain @ innovation
+        predicted = (identity - gain @ h) @ predicted @ (identity - gain @ h).T
+        predicted += gain @ r @ gain.T
+        gas.append(c @ state)
+        state = f @ state
+        predicted = f @ predicted @ f.T + q
+    return np.array(gas[1:])
+
+
+@pytest.mark.parametrize("kind", ["random-walk", "periodic", "band-limited", "autoregressive"])
+def test_the_batched_causal_filter_equals_the_plain_kalman_recursion(kind):
+    pair = make_pair("multisine", duration=3.0, noise_percent=1.0, seed=7, dt=0.0005)
+    model, _, _ = fit_fusion_model(
+        pair.tc1[:2048], pair.tc2[:2048], pair.dt, pair.tau1, pair.tau2, model=kind
+    )
+    fuser = CausalFuser(model)
+    parts, start = [], 0
+    for size in (1, 3, 25, 64, 65, 700, 25, 1):  # short products and long lfilter runs alike
+        parts.append(fuser.extend(pair.tc1[start : start + size], pair.tc2[start : start + size]))
+        start += size
+    parts.append(fuser.extend(pair.tc1[start:], pair.tc2[start:]))
+    gas = np.concatenate([part[0] for part in parts])
+    assert fuser.converged  # the steady-state recursion ran
+    expected = _plain_reference(model, pair.tc1, pair.tc2, fuser.schedule.length)
+    np.testing.assert_allclose(gas, expected, rtol=0, atol=1e-9 * np.ptp(pair.tc1))
+
+
+def test_the_modal_recursion_equals_the_schur_recursion():
+    from tcomp_core.fusion.recursion import ModalRecursion
+
+    rng = np.random.default_rng(11)
+    a = rng.normal(size=(6, 6))
+    a *= 0.95 / np.max(np.abs(np.linalg.eigvals(a)))  # stable, complex poles
+    b, c, d = rng.normal(size=(6, 2)), rng.normal(size=(3, 6)), rng.normal(size=(3, 2))
+    recursion = ModalRecursion(a, b, c, d)
+    x0 = rng.normal(size=6)
+    for count in (1, 40, 64, 65, 500):
+        u = rng.normal(size=(2, count))
+        outputs, state = recursion.run(u, x0)
+        states = linear_recursion(a, (b @ u)[:, :, None], x0[:, None])[:, :, 0]
+        previous = np.concatenate((x0[:, None], states[:, :-1]), axis=1)
+        np.testing.assert_allclose(outputs, c @ previous + d @ u, atol=1e-10)
+        np.testing.assert_allclose(state, states[:, -1], atol=1e-10)
+
+
+def test_auto_leaves_out_a_model_that_cannot_be_fitted(monkeypatch):
+    import tcomp_core.fusion.fitting as fitting
+
+    def broken(fit):
+        raise ValueError("no stationary autoregressive model of the gas could be fitted")
+
+    monkeypatch.setattr(fitting, "_fit_autoregressive", broken)
+    pair = make_pair("sinusoid", duration=2.0, noise_percent=1.0, seed=1)
+    fits = fitting.fit_signal_models(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2)
+    assert "autoregressive" in fits.failures
+    assert fits.ranked and fits.ranked[0][0].kind == "periodic"
+    result = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model="autoregressive")
+    assert result.model.kind == "periodic"  # the named model fell back to the likeliest other
+    assert "autoregressive not fitted" in result.note
+    assert "periodic used instead of autoregressive" in result.note
+    with pytest.raises(Exception, match="no signal model could be fitted"):
+        fit_fusion_model(
+            pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model="autoregressive"
+        )
+
+
+def test_a_model_whose_smoother_is_not_finite_gives_way(monkeypatch):
+    import tcomp_core.fusion.record as record
+
+    original = record.smoothed_gas
+
+    def unstable(model, first, second):
+        gas, std, log_likelihood = original(model, first, second)
+        if model.kind == "periodic":
+            gas = gas.copy()
+            gas[5] = np.nan
+        return gas, std, log_likelihood
+
+    monkeypatch.setattr(record, "smoothed_gas", unstable)
+    pair = make_pair("sinusoid", duration=2.0, noise_percent=1.0, seed=1)
+    result = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2)
+    assert result.model.kind != "periodic"
+    assert "periodic not fitted (numerically unstable" in result.note
+    assert np.all(np.isfinite(result.gas))

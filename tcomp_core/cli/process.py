@@ -1,8 +1,7 @@
 """``tcomp process``: recorded bags or CSV files in, compensated bags or CSV out.
 
-The engine options are the compensator node's parameters; their defaults here are those of
-:class:`~tcomp_core.online.OnlineConfig` and :class:`~tcomp_core.process.ProcessConfig`, written
-out so that building the parser imports neither (``test/test_cli.py`` checks they agree).
+The engine options are the compensator node's parameters, declared once in
+:mod:`tcomp_core.parameters` (numpy-free, so building the parser loads no numerical module).
 """
 
 from __future__ import annotations
@@ -12,14 +11,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..choices import (
-    DEFAULT_COLUMNS,
-    DEFAULT_METHOD,
-    DEFAULT_TOPICS,
-    METHODS,
-    RECONSTRUCT_FROM,
-    RECONSTRUCTIONS,
-)
+from .. import parameters
+from ..choices import DEFAULT_COLUMNS, DEFAULT_TOPICS
 from ..errors import TcompError
 from .common import (
     Verbs,
@@ -35,11 +28,6 @@ if TYPE_CHECKING:
     from ..process import ProcessConfig
 
 __all__ = ["add_parser", "process_config", "run"]
-
-#: Defaults of the estimation window (s), the estimator and φ: ``OnlineConfig()``'s.
-WINDOW_S = 2.0
-METHOD = DEFAULT_METHOD
-PHI = 1.0
 
 
 def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
@@ -70,65 +58,46 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     return parser
 
 
+#: The node's parameters ``process`` takes as options (``--window-s`` for ``window_s``);
+#: defaults, choices and help come from their declaration (:mod:`tcomp_core.parameters`).
+ENGINE_OPTIONS = (
+    "window_s",
+    "update_period_s",
+    "method",
+    "phi",
+    "prefilter_hz",
+    "postfilter_hz",
+    "reconstruction",
+    "signal_model",
+    "reconstruct_from",
+    "sample_period_s",
+    "sync_slop_s",
+)
+
+
 def _add_engine_arguments(parser: argparse.ArgumentParser) -> None:
-    engine = parser.add_argument_group("estimation and reconstruction (the node's parameters)")
-    engine.add_argument(
-        "--window-s",
-        type=positive_float,
-        default=WINDOW_S,
-        help=f"estimation window, s (default {WINDOW_S:g})",
+    engine = parser.add_argument_group(
+        "estimation and reconstruction (the node's parameters, their defaults the node's)"
     )
-    engine.add_argument(
-        "--update-period-s",
-        type=positive_float,
-        default=0.5,
-        help="re-estimation period in stamp time, s (default 0.5)",
-    )
+    for name in ENGINE_OPTIONS:
+        spec = parameters.spec(name)
+        kwargs: dict[str, object] = {"default": spec.default}
+        if spec.choices:
+            kwargs["choices"] = spec.choices
+        elif spec.kind is float:
+            kwargs["type"] = positive_float if (spec.low or 0.0) > 0.0 else non_negative_float
+        default = f"{spec.default:g}" if isinstance(spec.default, float) else spec.default
+        engine.add_argument(
+            "--" + name.replace("_", "-"),
+            help=f"{spec.description} (default {default})".replace("%", "%%"),
+            **kwargs,  # type: ignore[arg-type]
+        )
     engine.add_argument(
         "--batch-s",
         type=positive_float,
         default=0.1,
         help="pairs go to the compensator in batches of this much stamp "
         "time, s (default 0.1; keep it a divisor of --update-period-s)",
-    )
-    engine.add_argument(
-        "--method", choices=METHODS, default=METHOD, help=f"estimator (default {METHOD})"
-    )
-    engine.add_argument(
-        "--phi",
-        type=positive_float,
-        default=PHI,
-        help="noise variance ratio sigma1^2/sigma2^2 (default 1)",
-    )
-    engine.add_argument(
-        "--prefilter-hz",
-        type=non_negative_float,
-        default=0.0,
-        help="zero-phase pre-filter of the window, Hz (default 0 = off)",
-    )
-    engine.add_argument(
-        "--postfilter-hz",
-        type=non_negative_float,
-        default=0.0,
-        help="causal low-pass on the gas temperature, Hz (default 0 = off)",
-    )
-    engine.add_argument(
-        "--reconstruction",
-        choices=RECONSTRUCTIONS,
-        default="difference",
-        help="Eq. (7) ('difference', default) or the causal Kalman filter",
-    )
-    engine.add_argument(
-        "--reconstruct-from",
-        choices=RECONSTRUCT_FROM,
-        default="fused",
-        help="which Eq. (7) reconstruction (default fused)",
-    )
-    engine.add_argument(
-        "--sample-period-s",
-        type=non_negative_float,
-        default=0.0,
-        help="sample period, s (default 0 = learn it from the stamps)",
     )
 
 
@@ -186,19 +155,9 @@ def process_config(args: argparse.Namespace) -> ProcessConfig:
     from ..online import OnlineConfig
     from ..process import ProcessConfig
 
-    online = OnlineConfig(
-        window_s=args.window_s,
-        method=args.method,
-        phi=args.phi,
-        prefilter_hz=args.prefilter_hz,
-        postfilter_hz=args.postfilter_hz,
-        reconstruction=args.reconstruction,
-        reconstruct_from=args.reconstruct_from,
-        sample_period_s=args.sample_period_s,
-    )
+    online = OnlineConfig(**{name: getattr(args, name) for name in ENGINE_OPTIONS})
     return ProcessConfig(
         online=online,
-        update_period_s=args.update_period_s,
         batch_s=args.batch_s,
         topics=source_names(args.topics, "topics") or DEFAULT_TOPICS,
         columns=source_names(args.columns, "columns") or DEFAULT_COLUMNS,

@@ -112,6 +112,8 @@ class OutputModel:
     notes : tuple of str
         What the data cannot fix and which convention decided it (the diagnosis's
         identifiability).
+    at_bound : tuple of str
+        Parameters of the fit that ended on a bound of their physical range.
     """
 
     effects: tuple[str, ...]
@@ -124,6 +126,7 @@ class OutputModel:
     base_taus: tuple[float, float] = (math.nan, math.nan)
     band_hz: float = math.nan
     notes: tuple[str, ...] = field(default=())
+    at_bound: tuple[str, ...] = field(default=())
 
     @property
     def tau1(self) -> float:
@@ -301,6 +304,7 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         base_taus=(float(diagnosis.base.tau1), float(diagnosis.base.tau2)),
         band_hz=float(diagnosis.eval_cutoff_hz),
         notes=tuple(diagnosis.identifiability),
+        at_bound=tuple(final.at_bound),
     )
 
 

@@ -20,12 +20,8 @@ every job reports that the worker died.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
 import time as _time
 from collections.abc import Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 import numpy as np
@@ -34,13 +30,10 @@ from numpy.typing import ArrayLike
 from ..compensation import output_model_from_diagnosis
 from ..effects import check_effect_names
 from ..io import Record
+from ..workers import JobRunner, ProcessRunner
 from .pipeline import diagnose, fit_effects
 
 __all__ = ["BackgroundDiagnoser", "parse_effects", "run_job"]
-
-#: The worker runs this much nicer than its caller: on a small machine the real-time work of
-#: the caller comes first and the diagnosis takes the spare CPU.
-WORKER_NICENESS = 10
 
 
 def parse_effects(effects: str | Sequence[str]) -> tuple[str, ...]:
@@ -65,11 +58,6 @@ def parse_effects(effects: str | Sequence[str]) -> tuple[str, ...]:
     if isinstance(effects, str):
         effects = [] if effects.strip() in ("", "none") else effects.split(",")
     return check_effect_names(name.strip() for name in effects)
-
-
-def _lower_priority() -> None:
-    """Initializer of the worker process: yield the CPU to the caller."""
-    os.nice(WORKER_NICENESS)
 
 
 def run_job(
@@ -139,17 +127,19 @@ def run_job(
 
 
 class BackgroundDiagnoser:
-    """One diagnosis at a time in a worker process; submit and poll never block.
+    """One diagnosis at a time in a job runner; submit and poll never block.
 
-    The worker process is spawned on the first :meth:`submit` and kept for later jobs (its
-    start-up, mostly imports, takes a couple of seconds); it runs at a lower priority
-    (:data:`WORKER_NICENESS`). If it dies, the job reports an error and the next submit starts
-    a new one.
+    Parameters
+    ----------
+    runner : JobRunner, optional
+        Where the jobs run: by default a worker process at a lower priority
+        (:class:`~tcomp_core.workers.ProcessRunner`, spawned on the first :meth:`submit`);
+        :class:`~tcomp_core.workers.InlineRunner` runs them in the caller. If the worker dies,
+        the job reports an error and the next submit starts a new one.
     """
 
-    def __init__(self) -> None:
-        self._pool: ProcessPoolExecutor | None = None
-        self._future: Future[dict[str, Any]] | None = None
+    def __init__(self, runner: JobRunner | None = None) -> None:
+        self._runner = runner if runner is not None else ProcessRunner()
         self._latest: dict[str, Any] | None = None
         self._unread = False
         self._closed = False
@@ -157,7 +147,7 @@ class BackgroundDiagnoser:
     @property
     def busy(self) -> bool:
         """Whether a job is running."""
-        return self._future is not None and not self._future.done()
+        return self._runner.busy
 
     @property
     def latest(self) -> dict[str, Any] | None:
@@ -220,14 +210,7 @@ class BackgroundDiagnoser:
         if self.busy:
             return False
         self._collect()  # keep a finished, unread result for poll()
-        if self._pool is None:
-            self._pool = ProcessPoolExecutor(
-                max_workers=1,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=_lower_priority,
-            )
-        self._future = self._pool.submit(run_job, record, names, find_suspect, output)
-        return True
+        return self._runner.submit(run_job, record, names, find_suspect, output)
 
     def poll(self) -> dict[str, Any] | None:
         """The result of a job that finished since the last call, else None (never blocks)."""
@@ -240,30 +223,14 @@ class BackgroundDiagnoser:
     def close(self) -> None:
         """Stop the worker, abandoning a running job; later calls do nothing."""
         self._closed = True
-        pool, self._pool = self._pool, None
-        self._future = None
-        if pool is None:
-            return
-        # A running diagnosis is disposable: end the worker now instead of letting the caller's
-        # exit wait seconds for it (ProcessPoolExecutor has no public way before Python 3.14).
-        # The pool's manager thread then stops at once; waiting for it keeps it from racing the
-        # interpreter's exit hook (an ignored OSError on Python 3.11).
-        for worker in list((pool._processes or {}).values()):
-            worker.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
+        self._runner.close()
 
     def _collect(self) -> None:
-        future = self._future
-        if future is None or not future.done():
+        outcome = self._runner.poll()
+        if outcome is None:
             return
-        self._future = None
-        try:
-            self._latest = future.result()
-        except BrokenProcessPool as exc:
-            self._latest = {"error": f"the diagnosis worker died: {exc}"}
-            if self._pool is not None:
-                self._pool.shutdown(wait=True)  # its worker is gone: returns at once
-            self._pool = None
-        except Exception as exc:  # e.g. the job's data failed to pickle
-            self._latest = {"error": f"{type(exc).__name__}: {exc}"}
+        if outcome.error:
+            self._latest = {"error": outcome.error.replace("worker died", "diagnosis worker died")}
+        else:
+            self._latest = outcome.value
         self._unread = True

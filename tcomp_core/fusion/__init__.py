@@ -69,7 +69,7 @@ filter), :mod:`.record` (:func:`fuse`).
 from __future__ import annotations
 
 from .causal import CausalFuser
-from .fitting import fit_fusion_model
+from .fitting import SignalModelFits, fit_fusion_model, fit_signal_models
 from .kalman import SteadyState, steady_state
 from .record import FusionResult, fuse
 from .recursion import linear_recursion
@@ -89,10 +89,12 @@ __all__ = [
     "FusionResult",
     "ModelChoice",
     "ModelKind",
+    "SignalModelFits",
     "StateSpace",
     "SteadyState",
     "butterworth_dynamics",
     "fit_fusion_model",
+    "fit_signal_models",
     "fuse",
     "linear_recursion",
     "steady_state",

@@ -1,23 +1,27 @@
 """Causal (streaming) Kalman filter of the gas temperature, for the online node.
 
-The filter starts from a diffuse prior with the exact time-varying Kalman recursion (a loop over
-samples) and switches to the steady-state gain once its gain has converged, or after
-:data:`MAX_EXACT_SAMPLES` samples; the steady-state part runs in vectorised batches.
+The filter starts from a diffuse prior with the exact time-varying Kalman recursion and switches
+to the steady-state gain once its gain has converged, or after :data:`MAX_EXACT_SAMPLES`
+samples. The covariances of the time-varying part do not depend on the data: their gains are
+computed once per model (:class:`ExactSchedule`), so a start (or a restart after a gap) costs
+one small state update per sample. The steady-state part is a fixed linear recursion run in
+batches at compiled speed (:class:`~tcomp_core.fusion.recursion.ModalRecursion`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..validation import check_pair
-from .kalman import forward_pass, steady_state
-from .recursion import apply_matrix
-from .signal_model import FusionModel
+from .kalman import steady_state
+from .recursion import ModalRecursion
+from .signal_model import FusionModel, StateSpace
 
-__all__ = ["GAIN_TOLERANCE", "MAX_EXACT_SAMPLES", "CausalFuser"]
+__all__ = ["GAIN_TOLERANCE", "MAX_EXACT_SAMPLES", "CausalFuser", "ExactSchedule"]
 
 #: Relative distance of the time-varying Kalman gain from the steady-state one at which the
 #: causal filter switches to the steady-state gain.
@@ -29,19 +33,89 @@ MAX_EXACT_SAMPLES = 4096
 LOG_2PI_SQUARED = 2.0 * math.log(2.0 * math.pi)
 
 
+@dataclass(frozen=True)
+class ExactSchedule:
+    """The time-varying Kalman filter from the diffuse prior, step by step (L steps).
+
+    Attributes
+    ----------
+    gains : ndarray, shape (L, n, 2)
+        Kalman gain of each step.
+    std : ndarray, shape (L,)
+        Standard deviation of the filtered gas at each step, degrees C.
+    inverse : ndarray, shape (L, 2, 2)
+        Inverse innovation covariance of each step, 1/°C².
+    log_det : ndarray, shape (L,)
+        Log-determinant of the innovation covariance of each step.
+    predicted_var : ndarray, shape (L + 1,)
+        Variance of the predicted gas before each step (and after the last), °C².
+    """
+
+    gains: NDArray[np.float64]
+    std: NDArray[np.float64]
+    inverse: NDArray[np.float64]
+    log_det: NDArray[np.float64]
+    predicted_var: NDArray[np.float64]
+
+    @classmethod
+    def of(cls, space: StateSpace, target: NDArray[np.float64]) -> ExactSchedule:
+        """Run the covariance recursion until the gain is within tolerance of ``target``."""
+        f, noise, covariance = space.transition, space.noise, space.covariance
+        c = space.output
+        tolerance = GAIN_TOLERANCE * float(np.max(np.abs(target)))
+        predicted = np.diag(space.prior_std**2)
+        identity = np.eye(f.shape[0])
+        gains, stds, inverses, log_dets, predicted_var = [], [], [], [], [float(c @ predicted @ c)]
+        for _ in range(MAX_EXACT_SAMPLES):
+            (s00, s01), (s10, s11) = predicted[-2:, -2:] + noise
+            determinant = s00 * s11 - s01 * s10
+            inverse = np.array([[s11, -s01], [-s10, s00]]) / determinant
+            gain = predicted[:, -2:] @ inverse
+            update = identity.copy()
+            update[:, -2:] -= gain
+            filtered = update @ predicted @ update.T + gain @ noise @ gain.T  # Joseph form
+            predicted = f @ filtered @ f.T + covariance
+            predicted = 0.5 * (predicted + predicted.T)
+            gains.append(gain)
+            stds.append(math.sqrt(max(float(c @ filtered @ c), 0.0)))
+            inverses.append(inverse)
+            log_dets.append(math.log(determinant))
+            predicted_var.append(float(c @ predicted @ c))
+            if np.abs(gain - target).max() <= tolerance:
+                break
+        return cls(
+            np.array(gains),
+            np.array(stds),
+            np.array(inverses),
+            np.array(log_dets),
+            np.array(predicted_var),
+        )
+
+    @property
+    def length(self) -> int:
+        """Steps before the steady-state gain takes over."""
+        return int(self.std.size)
+
+
 class CausalFuser:
     """Streaming Kalman filter of the gas temperature, for the online node.
 
     Each new sample pair k yields the estimate of the gas temperature over the previous
     interval ``[t_{k-1}, t_k)`` (the latency of Eq. 7); the very first pair yields nothing.
     The filter starts from a diffuse prior around the first reading with the exact
-    time-varying Kalman recursion (one sample at a time) and switches to the steady-state
-    gain, processed in vectorised batches, once the covariance has converged.
+    time-varying Kalman recursion (one sample at a time, its gains computed once per model) and
+    switches to the steady-state gain, a fixed linear recursion run in compiled batches, once
+    the gain has converged.
 
     Parameters
     ----------
     model : FusionModel
         A fitted model (:func:`fit_fusion_model`).
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError, ValueError
+        When the model has no steady-state Kalman filter (no stabilising Riccati solution).
 
     Examples
     --------
@@ -51,14 +125,37 @@ class CausalFuser:
     """
 
     def __init__(self, model: FusionModel) -> None:
-        self.model = model
-        self._space = model.state_space()
-        self._gains = steady_state(self._space)
+        self._set_model(model)
         self._state: NDArray[np.float64] | None = None  # x_{k|k-1}
-        self._covariance = np.diag(self._space.prior_std**2)
-        self._steady = False
-        self._exact_samples = 0
+        self._step = 0  # time-varying steps taken since the start
         self.log_likelihood = 0.0
+
+    def _set_model(self, model: FusionModel) -> None:
+        self.model = model
+        self._space = space = model.state_space()
+        self._gains = gains = steady_state(space)
+        self._schedule: ExactSchedule | None = None
+        h, c = space.observation, space.output
+        update = np.eye(space.transition.shape[0]) - gains.gain @ h
+        # Prediction x_{k+1|k} = F (I - K H) x_{k|k-1} + F K y_k; read out the filtered gas
+        # c x_{k|k} and the predicted readings H x_{k|k-1} (for the innovations).
+        self._recursion = ModalRecursion(
+            gains.closed_loop,
+            space.transition @ gains.gain,
+            np.vstack((c @ update, h)),
+            np.vstack((c @ gains.gain, np.zeros((2, 2)))),
+        )
+        self._steady_std = math.sqrt(max(float(c @ gains.filtered @ c), 0.0))
+        innovation = gains.innovation
+        self._inverse_innovation = np.linalg.inv(innovation)
+        self._log_det = float(np.linalg.slogdet(innovation)[1])
+
+    @property
+    def schedule(self) -> ExactSchedule:
+        """The time-varying start of the filter (computed on first use, then kept)."""
+        if self._schedule is None:
+            self._schedule = ExactSchedule.of(self._space, self._gains.gain)
+        return self._schedule
 
     @property
     def started(self) -> bool:
@@ -68,35 +165,30 @@ class CausalFuser:
     @property
     def converged(self) -> bool:
         """Whether the filter runs on the steady-state gain."""
-        return self._steady
+        return self._step >= self.schedule.length
 
     def reset(self) -> None:
         """Forget the state: the next pair starts afresh from the diffuse prior."""
         self._state = None
-        self._covariance = np.diag(self._space.prior_std**2)
-        self._steady = False
-        self._exact_samples = 0
+        self._step = 0
         self.log_likelihood = 0.0
 
     def retune(self, model: FusionModel) -> None:
         """Switch to new model settings (e.g. new τ) and keep what the filter knows.
 
         The state ``[x, T_1, T_2]`` means the same under any model with the same signal state,
-        so the estimate carries over without a new diffuse start: a steady filter moves to the
-        new steady-state covariance, a converging one keeps its covariance. A model whose
-        signal state differs (another kind or order) starts afresh (:meth:`reset`).
+        so the estimate carries over without a new diffuse start, and a filter still converging
+        continues the new model's time-varying start where it stood. A model whose signal state
+        differs (another kind or order) starts afresh (:meth:`reset`).
         """
-        space = model.state_space()
         same_state = (model.kind, model.order, len(model.ar)) == (
             self.model.kind,
             self.model.order,
             len(self.model.ar),
         )
-        self.model, self._space, self._gains = model, space, steady_state(space)
+        self._set_model(model)
         if not same_state:
             self.reset()
-        elif self._steady:
-            self._covariance = self._gains.predicted
 
     def _initial_state(self, y1: float, y2: float) -> NDArray[np.float64]:
         """Sensors at their first readings, the gas (or level) at the faster sensor's."""
@@ -132,68 +224,65 @@ class CausalFuser:
         if state is None:
             state, skip = self._initial_state(first[0], second[0]), 1
         done = 0
-        if not self._steady:
-            state, exact_gas, exact_std = self._exact_batch(y, state)
-            done = exact_gas.size
-            gas[:done], std[:done] = exact_gas, exact_std
+        if self._step < self.schedule.length:
+            state, done = self._exact_batch(y, state, gas, std)
         if done < count:
-            state, steady_gas, steady_std = self._steady_batch(y[:, done:], state)
-            gas[done:], std[done:] = steady_gas, steady_std
+            state = self._steady_batch(y[:, done:], state, gas[done:], std[done:])
         self._state = state
         return gas[skip:], std[skip:]
 
     def _exact_batch(
-        self, y: NDArray[np.float64], state: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """Time-varying Kalman filter over y (2, M) from the predicted ``state`` (n,).
+        self,
+        y: NDArray[np.float64],
+        state: NDArray[np.float64],
+        gas: NDArray[np.float64],
+        std: NDArray[np.float64],
+    ) -> tuple[NDArray[np.float64], int]:
+        """Time-varying filter over y (2, M) from the predicted ``state`` (n,).
 
-        Runs until the gain has converged. Returns the next predicted state, and the filtered
-        gas and its std for the samples processed (possibly fewer than M).
+        Writes gas and std of the samples it takes (until the schedule ends); returns the next
+        predicted state and the number of samples taken.
         """
-        f, noise, covariance = self._space.transition, self._space.noise, self._space.covariance
-        c, target = self._space.output, self._gains.gain
-        tolerance = GAIN_TOLERANCE * float(np.max(np.abs(target)))
-        predicted = self._covariance
-        gas, std = np.empty(y.shape[1]), np.empty(y.shape[1])
-        done = 0
-        f_t, identity = f.T, np.eye(f.shape[0])
-        while done < y.shape[1] and not self._steady:
-            (s00, s01), (s10, s11) = predicted[-2:, -2:] + noise
-            determinant = s00 * s11 - s01 * s10
-            inverse = np.array([[s11, -s01], [-s10, s00]]) / determinant
-            gain = predicted[:, -2:] @ inverse
+        schedule = self.schedule
+        count = min(y.shape[1], schedule.length - self._step)
+        f, c = self._space.transition, self._space.output
+        steps = range(self._step, self._step + count)
+        log_likelihood = 0.0
+        for done, step in enumerate(steps):
             innovation = y[:, done] - state[-2:]
-            state = state + gain @ innovation
-            update = identity.copy()
-            update[:, -2:] -= gain
-            filtered = update @ predicted @ update.T + gain @ noise @ gain.T  # Joseph form
-            gas[done], std[done] = c @ state, math.sqrt(max(c @ filtered @ c, 0.0))
-            self.log_likelihood -= 0.5 * (
-                math.log(determinant) + innovation @ inverse @ innovation + LOG_2PI_SQUARED
+            state = state + schedule.gains[step] @ innovation
+            gas[done] = c @ state
+            log_likelihood += (
+                schedule.log_det[step]
+                + innovation @ schedule.inverse[step] @ innovation
+                + LOG_2PI_SQUARED
             )
             state = f @ state
-            predicted = f @ filtered @ f_t + covariance
-            predicted = 0.5 * (predicted + predicted.T)
-            self._exact_samples += 1
-            done += 1
-            converged = np.abs(gain - target).max() <= tolerance
-            self._steady = converged or self._exact_samples >= MAX_EXACT_SAMPLES
-        self._covariance = self._gains.predicted if self._steady else predicted
-        return state, gas[:done], std[:done]
+        std[:count] = schedule.std[self._step : self._step + count]
+        self._step += count
+        self.log_likelihood -= 0.5 * log_likelihood
+        return state, count
 
     def _steady_batch(
-        self, y: NDArray[np.float64], state: NDArray[np.float64]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        self,
+        y: NDArray[np.float64],
+        state: NDArray[np.float64],
+        gas: NDArray[np.float64],
+        std: NDArray[np.float64],
+    ) -> NDArray[np.float64]:
         """Steady-state filter over y (2, M) from the predicted ``state`` (n,).
 
-        Returns the next predicted state, and the filtered gas and its std (M,).
+        Writes the filtered gas and its std (M,); returns the next predicted state.
         """
-        forward = forward_pass(self._space, self._gains, y, state)
-        self.log_likelihood += forward.log_likelihood
-        filtered = forward.predicted[:, :-1] + apply_matrix(self._gains.gain, forward.innovations)
-        c = self._space.output
-        std = float(np.sqrt(c @ self._gains.filtered @ c))
-        return forward.predicted[:, -1], c @ filtered, np.full(y.shape[1], std)
+        outputs, state = self._recursion.run(y, state)
+        gas[:] = outputs[0]
+        std[:] = self._steady_std
+        innovations = y - outputs[1:]
+        quadratic = np.einsum("ik,ij,jk->", innovations, self._inverse_innovation, innovations)
+        self.log_likelihood -= 0.5 * (
+            y.shape[1] * (self._log_det + LOG_2PI_SQUARED) + float(quadratic)
+        )
+        return state
 
     def step(self, tc1: float, tc2: float) -> tuple[float, float] | None:
         """Filter one sample pair: the previous interval's gas and its std (None at first)."""
@@ -205,4 +294,8 @@ class CausalFuser:
         if self._state is None:
             raise ValueError("no sample has been filtered yet")
         c = self._space.output
-        return float(c @ self._state), float(np.sqrt(c @ self._covariance @ c))
+        if self._step < self.schedule.length:
+            variance = float(self.schedule.predicted_var[self._step])
+        else:
+            variance = float(c @ self._gains.predicted @ c)
+        return float(c @ self._state), math.sqrt(max(variance, 0.0))

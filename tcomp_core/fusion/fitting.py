@@ -18,6 +18,7 @@ import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
+from ..errors import EstimationError
 from ..models import lag_frequency_response, tau_to_pole
 from ..noise import model_noise
 from ..reconstruct import Reconstruction, reconstruct
@@ -25,7 +26,7 @@ from ..validation import check_pair, check_sample_interval
 from .kalman import innovation_log_likelihood
 from .signal_model import MODELS, FusionModel, ModelChoice, ModelKind, butterworth_unit_variance
 
-__all__ = ["fit_fusion_model"]
+__all__ = ["FIT_FAILURES", "SignalModelFits", "fit_fusion_model", "fit_signal_models"]
 
 #: Smallest noise standard deviation used, as a fraction of the signal's standard deviation:
 #: keeps the Riccati equation well posed on noise-free data.
@@ -384,6 +385,138 @@ def _noise_sigmas(
     return sigmas[0], sigmas[1]
 
 
+@dataclass(frozen=True)
+class SignalModelFits:
+    """Signal models fitted to one record by maximum likelihood, best first.
+
+    Attributes
+    ----------
+    ranked : list of (FusionModel, float)
+        The models that could be fitted and their log-likelihoods (nats), by log-likelihood less
+        their number of hyper-parameters (Akaike), best first.
+    failures : dict of str to str
+        Why each model that could not be fitted failed.
+    requested : str
+        The model asked for ('auto' or a name).
+    """
+
+    ranked: list[tuple[FusionModel, float]]
+    failures: dict[str, str]
+    requested: str
+
+    @property
+    def candidates(self) -> dict[str, float]:
+        """Log-likelihood of every model fitted, nats."""
+        return {model.kind: value for model, value in self.ranked}
+
+    def note(self, chosen: FusionModel | None = None) -> str:
+        """What the fit could not do and what was used instead ('' when nothing to say)."""
+        chosen = chosen if chosen is not None else (self.ranked[0][0] if self.ranked else None)
+        parts = [f"{kind} not fitted ({reason})" for kind, reason in self.failures.items()]
+        if chosen is not None and self.requested not in ("auto", chosen.kind):
+            parts.append(f"{chosen.kind} used instead of {self.requested}")
+        return "; ".join(parts)
+
+
+#: Failures of one signal model's fit that leave the others to try.
+FIT_FAILURES = (ValueError, ArithmeticError, np.linalg.LinAlgError)
+
+
+def fit_signal_models(
+    tc1: ArrayLike,
+    tc2: ArrayLike,
+    dt: float,
+    tau1: float,
+    tau2: float,
+    *,
+    sigma1: float | None = None,
+    sigma2: float | None = None,
+    model: ModelChoice = "auto",
+    fallback: bool = True,
+) -> SignalModelFits:
+    """Fit the signal model asked for (or every one, 'auto') and rank what could be fitted.
+
+    A model whose fit fails (a non-stationary autoregression, a Riccati equation without a
+    stabilising solution, ...) is left out and its reason kept; with ``fallback`` a named
+    model that fails is replaced by the others, ranked as 'auto' ranks them.
+
+    Parameters
+    ----------
+    tc1, tc2 : array_like, shape (N,)
+        Thermocouple temperatures, degrees C.
+    dt : float
+        Sample interval, seconds.
+    tau1, tau2 : float
+        Time constants, seconds.
+    sigma1, sigma2 : float, optional
+        Noise standard deviations, degrees C; measured from the model
+        (:func:`tcomp_core.noise.model_noise`) when omitted.
+    model : {'auto', 'random-walk', 'integrated-random-walk', 'band-limited', 'periodic', \
+'autoregressive'}
+        Signal model; 'auto' fits those of :data:`AUTO_MODELS`.
+    fallback : bool
+        Fit the others when a named model fails.
+
+    Returns
+    -------
+    SignalModelFits
+        ``ranked`` may be empty: then no model could be fitted (``failures`` says why).
+
+    Raises
+    ------
+    ValueError
+        On an unknown model name or data that do not form a record.
+    """
+    first, second = check_pair(tc1, tc2)
+    dt = check_sample_interval(dt)
+    if model != "auto" and model not in MODELS:
+        raise ValueError(f"model={model!r} is not 'auto' or one of {', '.join(MODELS)}")
+    failures: dict[str, str] = {}
+    try:
+        fit = _prepare(first, second, dt, tau1, tau2, sigma1, sigma2)
+    except FIT_FAILURES as exc:
+        return SignalModelFits([], {model: f"no noise levels or gas variance: {exc}"}, model)
+    fitted: list[tuple[FusionModel, float]] = []
+    kinds: tuple[ModelKind, ...] = AUTO_MODELS if model == "auto" else (model,)
+    for attempt in (kinds, tuple(k for k in AUTO_MODELS if k != model)):
+        for kind in attempt:
+            try:
+                candidate = _fit_kind(fit, kind)
+            except FIT_FAILURES as exc:
+                failures[kind] = str(exc) or type(exc).__name__
+                continue
+            log_likelihood = -fit.cost(candidate)
+            if log_likelihood <= -FAILED_COST:
+                failures[kind] = "its Kalman filter has no steady state on this record"
+                continue
+            fitted.append((candidate, log_likelihood))
+        if fitted or model == "auto" or not fallback:
+            break
+    fitted.sort(key=lambda item: item[1] - item[0].n_hyperparameters, reverse=True)
+    return SignalModelFits(fitted, failures, model)
+
+
+def _prepare(
+    first: NDArray[np.float64],
+    second: NDArray[np.float64],
+    dt: float,
+    tau1: float,
+    tau2: float,
+    sigma1: float | None,
+    sigma2: float | None,
+) -> _Fitting:
+    """Noise levels, gas variance and spectral line shared by the fits of one record."""
+    s1, s2 = _noise_sigmas(first, second, (dt, tau1, tau2), sigma1, sigma2)
+    base = FusionModel(kind="random-walk", dt=dt, tau1=tau1, tau2=tau2, sigma1=s1, sigma2=s2, q=1)
+    level = float(np.mean(first))
+    return _Fitting(
+        base=base,
+        y=np.vstack((first - level, second - level)),
+        scale=_gas_variance(first, second, base),
+        freq_hz=_dominant_frequency(first, second, base),
+    )
+
+
 def fit_fusion_model(
     tc1: ArrayLike,
     tc2: ArrayLike,
@@ -411,7 +544,8 @@ def fit_fusion_model(
     model : {'auto', 'random-walk', 'integrated-random-walk', 'band-limited', 'periodic', \
 'autoregressive'}
         Signal model; 'auto' fits those of :data:`AUTO_MODELS` and keeps the one with the
-        highest log-likelihood less its number of hyper-parameters (Akaike).
+        highest log-likelihood less its number of hyper-parameters (Akaike); a model that
+        cannot be fitted is left out (:func:`fit_signal_models` says why).
 
     Returns
     -------
@@ -420,22 +554,16 @@ def fit_fusion_model(
         Of the chosen model, nats.
     candidates : dict of str to float
         Log-likelihood of every model fitted, nats.
+
+    Raises
+    ------
+    EstimationError
+        When the model named (or, for 'auto', every model) cannot be fitted.
     """
-    first, second = check_pair(tc1, tc2)
-    dt = check_sample_interval(dt)
-    if model != "auto" and model not in MODELS:
-        raise ValueError(f"model={model!r} is not 'auto' or one of {', '.join(MODELS)}")
-    s1, s2 = _noise_sigmas(first, second, (dt, tau1, tau2), sigma1, sigma2)
-    base = FusionModel(kind="random-walk", dt=dt, tau1=tau1, tau2=tau2, sigma1=s1, sigma2=s2, q=1)
-    level = float(np.mean(first))
-    fit = _Fitting(
-        base=base,
-        y=np.vstack((first - level, second - level)),
-        scale=_gas_variance(first, second, base),
-        freq_hz=_dominant_frequency(first, second, base),
+    fits = fit_signal_models(
+        tc1, tc2, dt, tau1, tau2, sigma1=sigma1, sigma2=sigma2, model=model, fallback=False
     )
-    kinds = AUTO_MODELS if model == "auto" else (model,)
-    fitted = {kind: _fit_kind(fit, kind) for kind in kinds}
-    candidates: dict[str, float] = {kind: -fit.cost(value) for kind, value in fitted.items()}
-    best = max(kinds, key=lambda k: candidates[k] - fitted[k].n_hyperparameters)
-    return fitted[best], candidates[best], candidates
+    if not fits.ranked:
+        raise EstimationError(f"no signal model could be fitted: {fits.note()}")
+    best, log_likelihood = fits.ranked[0]
+    return best, log_likelihood, fits.candidates

@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import EstimationError
 from ..validation import check_pair
 from .causal import CausalFuser
-from .fitting import fit_fusion_model
+from .fitting import FIT_FAILURES, SignalModelFits, fit_signal_models
 from .signal_model import FusionModel, ModelChoice
 from .smoother import smoothed_gas
 
@@ -37,6 +37,9 @@ class FusionResult:
         Log-likelihood of each signal model fitted (empty when the model was given).
     causal : bool
         Whether ``gas`` comes from the forward (causal) filter rather than the smoother.
+    note : str
+        Signal models that could not be fitted or used, and which one was used instead ('' when
+        the model asked for was used).
     """
 
     time: NDArray[np.float64]
@@ -46,6 +49,7 @@ class FusionResult:
     log_likelihood: float
     candidates: dict[str, float] = field(default_factory=dict)
     causal: bool = False
+    note: str = ""
 
     @property
     def kind(self) -> str:
@@ -85,8 +89,9 @@ def fuse(
         (:func:`tcomp_core.noise.model_noise`) when omitted.
     model : str or FusionModel
         'auto' or a signal model name, fitted by maximum likelihood
-        (:func:`fit_fusion_model`), or a :class:`FusionModel` used as it is (its dt, τ and σ
-        then replace the arguments).
+        (:func:`fit_signal_models`), or a :class:`FusionModel` used as it is (its dt, τ and σ
+        then replace the arguments). A model that cannot be fitted, or whose reconstruction is
+        not finite, gives way to the next likeliest (``note`` says so).
     causal : bool
         Run the forward Kalman filter only: element k then depends on samples 0..k+1 alone,
         once the model is fixed. With a model name the hyper-parameters are still fitted on
@@ -97,35 +102,68 @@ def fuse(
     FusionResult
         Gas estimate and its standard deviation, shape (N,); element k is the gas temperature
         over ``[t_k, t_{k+1})``.
+
+    Raises
+    ------
+    EstimationError
+        When no signal model can be fitted and used (Eq. 7 still can: the caller's fallback).
     """
     first, second = check_pair(tc1, tc2)
-    candidates: dict[str, float] = {}
     if isinstance(model, FusionModel):
-        fitted = model
-    else:
-        fitted, _, candidates = fit_fusion_model(
-            first, second, dt, tau1, tau2, sigma1=sigma1, sigma2=sigma2, model=model
+        gas, std, log_likelihood = _run(model, first, second, causal)
+        if gas is None:
+            raise EstimationError(
+                f"the Kalman reconstruction with the {model.kind} signal model is numerically "
+                "unstable on this record (non-finite output); choose another signal model"
+            )
+        return FusionResult(
+            time=np.arange(first.size, dtype=np.float64) * model.dt,
+            gas=gas,
+            std=std,
+            model=model,
+            log_likelihood=log_likelihood,
+            causal=causal,
         )
-    if causal:
-        fuser = CausalFuser(fitted)
-        gas, std = fuser.extend(first, second)
-        ahead, ahead_std = fuser.predict()
-        gas, std = np.append(gas, ahead), np.append(std, ahead_std)
-        log_likelihood = fuser.log_likelihood
-    else:
-        with np.errstate(over="ignore", invalid="ignore"):
-            gas, std, log_likelihood = smoothed_gas(fitted, first, second)
-    if not (np.all(np.isfinite(gas)) and np.all(np.isfinite(std))):
-        raise EstimationError(
-            f"the Kalman reconstruction with the {fitted.kind} signal model is numerically "
-            "unstable on this record (non-finite output); choose another signal model"
-        )
-    return FusionResult(
-        time=np.arange(first.size, dtype=np.float64) * fitted.dt,
-        gas=gas,
-        std=std,
-        model=fitted,
-        log_likelihood=log_likelihood,
-        candidates=candidates,
-        causal=causal,
+    fits = fit_signal_models(
+        first, second, dt, tau1, tau2, sigma1=sigma1, sigma2=sigma2, model=model
     )
+    failures = dict(fits.failures)
+    for fitted, _ in fits.ranked:
+        gas, std, log_likelihood = _run(fitted, first, second, causal)
+        if gas is None:
+            failures[fitted.kind] = "numerically unstable on this record (non-finite output)"
+            continue
+        note = SignalModelFits(fits.ranked, failures, fits.requested).note(fitted)
+        return FusionResult(
+            time=np.arange(first.size, dtype=np.float64) * fitted.dt,
+            gas=gas,
+            std=std,
+            model=fitted,
+            log_likelihood=log_likelihood,
+            candidates=fits.candidates,
+            causal=causal,
+            note=note,
+        )
+    reasons = SignalModelFits([], failures, fits.requested).note()
+    raise EstimationError(f"no signal model of the gas could be used: {reasons}")
+
+
+def _run(
+    model: FusionModel, first: NDArray[np.float64], second: NDArray[np.float64], causal: bool
+) -> tuple[NDArray[np.float64] | None, NDArray[np.float64], float]:
+    """Gas, std and log-likelihood of the smoother or causal filter (gas None: not finite)."""
+    try:
+        if causal:
+            fuser = CausalFuser(model)
+            gas, std = fuser.extend(first, second)
+            ahead, ahead_std = fuser.predict()
+            gas, std = np.append(gas, ahead), np.append(std, ahead_std)
+            log_likelihood = fuser.log_likelihood
+        else:
+            with np.errstate(over="ignore", invalid="ignore"):
+                gas, std, log_likelihood = smoothed_gas(model, first, second)
+    except FIT_FAILURES:
+        return None, np.empty(0), -np.inf
+    if not (np.all(np.isfinite(gas)) and np.all(np.isfinite(std))):
+        return None, np.empty(0), -np.inf
+    return gas, std, log_likelihood

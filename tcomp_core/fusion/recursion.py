@@ -16,12 +16,15 @@ from scipy import signal
 
 __all__ = [
     "MAX_EIGENVECTOR_CONDITION",
+    "ModalRecursion",
     "apply_matrix",
     "decay_horizon",
     "linear_recursion",
     "matrix_powers",
 ]
 
+#: Batches up to this many samples run through :class:`ModalRecursion` as one product.
+SHORT_BATCH = 64
 #: Largest condition number of the eigenvectors for which matrix powers come from them.
 MAX_EIGENVECTOR_CONDITION = 1e8
 
@@ -114,3 +117,86 @@ def decay_horizon(matrix: NDArray[np.float64], count: int) -> int:
     if radius >= 1.0 - 1e-12:
         return count
     return int(min(count, math.ceil(math.log(1e-13) / math.log(max(radius, 1e-300))) + 1))
+
+
+class ModalRecursion:
+    """A fixed linear system run batch by batch at compiled speed, its state carried over.
+
+    ``x_{k+1} = A x_k + B u_k``, ``out_k = C x_k + D u_k``. In the eigenbasis of A
+    (``A = V Λ V⁻¹``) every mode is a first-order recursion driven by ``(V⁻¹ B) u``: one
+    :func:`scipy.signal.lfilter` call per mode (one of each complex-conjugate pair: the other
+    is its conjugate), whatever the batch length. With ill-conditioned eigenvectors it runs
+    :func:`linear_recursion` in a Schur basis instead (slower per call, as accurate).
+
+    Parameters
+    ----------
+    a : ndarray, shape (n, n)
+    b : ndarray, shape (n, m)
+    c : ndarray, shape (p, n)
+    d : ndarray, shape (p, m)
+    """
+
+    def __init__(
+        self,
+        a: NDArray[np.float64],
+        b: NDArray[np.float64],
+        c: NDArray[np.float64],
+        d: NDArray[np.float64],
+    ) -> None:
+        self._a, self._b, self._c, self._d = a, b, c, d
+        eigenvalues, vectors = np.linalg.eig(a)
+        self._modal = bool(np.linalg.cond(vectors) <= MAX_EIGENVECTOR_CONDITION)
+        if not self._modal:
+            return
+        # A real matrix's eigenvalues come in exact conjugate pairs (LAPACK): keep the real
+        # ones and the upper member of each pair, counted twice through the real part.
+        kept = eigenvalues.imag >= 0.0
+        weight = np.where(eigenvalues.imag[kept] > 0.0, 2.0, 1.0)
+        inverse = np.linalg.inv(vectors)[kept]
+        self._poles = eigenvalues[kept]
+        self._drive = inverse @ b  # (k, m)
+        self._project = inverse  # x -> z, (k, n)
+        self._read = (c @ vectors[:, kept]) * weight  # z -> out, (p, k)
+        self._rebuild = vectors[:, kept] * weight  # z -> x, (n, k)
+        lags = np.arange(SHORT_BATCH + 1)
+        self._powers = self._poles[:, None] ** lags  # λ^j, (k, S + 1)
+        delay = lags[:, None] - 1 - lags[None, :-1]  # j - 1 - i, (S + 1, S)
+        self._convolution = np.where(
+            delay >= 0, self._powers[:, np.clip(delay, 0, None)], 0.0
+        )  # (k, S + 1, S)
+
+    def run(
+        self, inputs: NDArray[np.float64], initial: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Outputs (p, M) of the inputs (m, M) from state ``initial`` (n,), and the next state.
+
+        Returns
+        -------
+        outputs : ndarray, shape (p, M)
+            ``C x_k + D u_k`` for k = 0..M-1.
+        state : ndarray, shape (n,)
+            ``x_M``.
+        """
+        direct = self._d @ inputs
+        if not self._modal:
+            runs = linear_recursion(self._a, (self._b @ inputs)[:, :, None], initial[:, None])
+            states = np.concatenate((initial[:, None], runs[:, :-1, 0]), axis=1)
+            return self._c @ states + direct, runs[:, -1, 0]
+        count = inputs.shape[1]
+        drive = self._drive @ inputs  # (k, M) complex
+        start = self._project @ initial
+        if count <= SHORT_BATCH:
+            # z_j = λ^j z_0 + Σ_{i<j} λ^(j-1-i) u_i as one product: cheaper than a call per
+            # mode for the few samples a real-time batch holds.
+            modes = self._powers[:, : count + 1] * start[:, None] + np.einsum(
+                "kji,ki->kj", self._convolution[:, : count + 1, :count], drive
+            )
+        else:
+            modes = np.empty((self._poles.size, count + 1), dtype=np.complex128)
+            modes[:, 0] = start
+            for i, pole in enumerate(self._poles):
+                modes[i, 1:], _ = signal.lfilter(
+                    [1.0], [1.0, -pole], drive[i], zi=[pole * start[i]]
+                )
+        outputs = (self._read @ modes[:, :-1]).real + direct
+        return outputs, (self._rebuild @ modes[:, -1]).real

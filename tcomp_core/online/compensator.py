@@ -5,14 +5,22 @@
   and the regression row straddling it is left out of the window.
 - The window (:class:`~.estimation.WindowEstimator`) is re-estimated on demand
   (:meth:`OnlineCompensator.update_estimate`); an accepted estimate drives the reconstruction.
+  An estimate is accepted when it is well conditioned and pinned down: its 95 % intervals
+  within ±:data:`MAX_TAU_INTERVAL` of it, or, for an estimator without intervals, the first
+  one within :data:`FIRST_AGREEMENT` of the attempt before it.
 - Each new pair k reconstructs the gas temperature at the previous pair's stamp with the latest
-  accepted τ (:mod:`.reconstructors`: Eq. 7 or the causal Kalman filter), optionally smoothed by
-  the causal post-filter.
+  accepted τ: the causal Kalman filter of both sensors (default; :mod:`.kalman`: its signal
+  model fitted by a job off the stream, the filter handed over warm) or Eq. (7), optionally
+  smoothed by the causal post-filter; or, once an output model is set, its gas
+  (:mod:`.extended`, built by a job too).
 - Before the first accepted estimate, one is attempted every :data:`~.config.FIRST_ESTIMATE_ROWS`
   window rows, and the pairs are held (up to one window) to be reconstructed once it lands.
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,20 +29,41 @@ from ..compensation import OutputModel
 from ..errors import DataError
 from ..fusion import FusionModel
 from ..validation import MIN_SAMPLES
-from .config import FIRST_ESTIMATE_ROWS, PERIOD_LEARNING_SAMPLES, EstimateStatus, OnlineConfig
-from .estimation import WindowEstimator
-from .extended import ExtendedOutput
-from .reconstructors import (
-    DifferenceReconstructor,
-    GasBatch,
-    KalmanReconstructor,
-    PostFilter,
-    make_reconstructor,
+from ..workers import InlineRunner, JobRunner
+from .config import (
+    FIRST_ESTIMATE_ROWS,
+    FUSION_FIT_SAMPLES,
+    PERIOD_LEARNING_SAMPLES,
+    EstimateStatus,
+    OnlineConfig,
 )
+from .estimation import WindowEstimator
+from .extended import ExtendedOutput, RecentPairs, build_output
+from .kalman import (
+    PRIME_PAIRS,
+    FilterPolicy,
+    FilterRequest,
+    KalmanReconstructor,
+    build_filter,
+    interim_build,
+)
+from .reconstructors import DifferenceReconstructor, GasBatch, PostFilter
 
-__all__ = ["OnlineCompensator"]
+__all__ = ["FIRST_AGREEMENT", "MAX_TAU_INTERVAL", "RECENT_S", "OnlineCompensator"]
 
 _Run = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray, NDArray]
+_Pairs = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
+
+#: Largest half-width of an estimate's 95 % interval of τ1 or τ2, relative to it, for the
+#: estimate to be accepted (convention: act only on what the data pin down).
+MAX_TAU_INTERVAL = 0.2
+#: An estimator without intervals: its first estimate is accepted only within this relative
+#: distance of the attempt before it (on a shorter window).
+FIRST_AGREEMENT = 0.1
+#: The newest pairs kept, seconds (at least :data:`~.kalman.PRIME_PAIRS`): a built filter or
+#: output model catches up through the pairs that came while its job ran, and the background
+#: diagnosis fits the newest stretch of them.
+RECENT_S = 60.0
 
 
 class OnlineCompensator:
@@ -45,6 +74,10 @@ class OnlineCompensator:
     config : OnlineConfig
     initial_tau : (float, float), optional
         Time constants to reconstruct with before the first accepted estimate, seconds.
+    runner : JobRunner, optional
+        Where the Kalman filter and the output models are built: inline by default (results
+        land at once, as ``tcomp process`` needs); a
+        :class:`~tcomp_core.workers.ProcessRunner` keeps the fits off a real-time caller.
 
     Attributes
     ----------
@@ -52,10 +85,15 @@ class OnlineCompensator:
         ``pairs`` taken, ``gaps`` seen, ``reconstructed`` and ``unreconstructed`` pairs.
     last_status : EstimateStatus or None
         The latest re-estimation.
+    recent : RecentPairs
+        The newest pairs taken (stamps ns, tc1, tc2), :data:`RECENT_S` seconds of them.
     """
 
     def __init__(
-        self, config: OnlineConfig | None = None, initial_tau: tuple[float, float] | None = None
+        self,
+        config: OnlineConfig | None = None,
+        initial_tau: tuple[float, float] | None = None,
+        runner: JobRunner | None = None,
     ) -> None:
         self._config = config or OnlineConfig()
         self._tau = initial_tau
@@ -69,14 +107,24 @@ class OnlineCompensator:
         self._newest_stamp = 0
         self._restarted = False  # the next pair need not follow _newest_stamp
         self.last_status: EstimateStatus | None = None
+        self._last_attempt: tuple[float, float] | None = None  # before the first acceptance
         self.counters = {"pairs": 0, "gaps": 0, "reconstructed": 0, "unreconstructed": 0}
         # Pairs that arrived before the first τ: (stamps, tc1, tc2, steps_s, contiguous).
         self._backlog: list[_Run] = []
         self._backlog_rows = 0
         self._next_first_attempt = FIRST_ESTIMATE_ROWS
         self._extended: ExtendedOutput | None = None
-        self._pending_output: tuple[OutputModel, int, tuple] | None = None
+        # An output model set before the period was known; one being built.
+        self._pending_output: tuple[OutputModel, int, _Pairs] | None = None
+        self._building_output: tuple[OutputModel, int, _Pairs] | None = None
         self._published_until = np.iinfo(np.int64).min  # newest gas stamp given out
+        self._reconstructed_until: int | None = None  # newest pair a reconstructor took
+        self.recent = RecentPairs(PRIME_PAIRS)
+        # Jobs: the one running ('filter' or 'output') and what waits for the runner.
+        self._runner: JobRunner = runner if runner is not None else InlineRunner()
+        self._running = ""
+        self._wanted_filter = ""  # 'refit' or 'retune' waiting for the runner
+        self._wanted_output: tuple[OutputModel, int, _Pairs] | None = None
         #: Why the published gas is first order although output models were asked for, or
         #: what the caller last decided about the output model ('' when nothing to say).
         self.output_note = ""
@@ -94,27 +142,58 @@ class OnlineCompensator:
 
     @property
     def tau(self) -> tuple[float, float] | None:
-        """Time constants (τ1, τ2) in seconds the reconstruction uses, once known."""
+        """The accepted first-order estimate (τ1, τ2) in seconds, once known."""
         return self._tau
 
     @property
     def published_tau(self) -> tuple[float, float] | None:
-        """τ1, τ2 (s) of the published gas: the output model's while it is in use."""
+        """τ1, τ2 (s) of the model that produces the published gas.
+
+        The output model's while one is in use, else the Kalman filter's (built for an
+        accepted τ, it follows the estimate within :data:`~.kalman.FUSION_RETUNE_CHANGE`), else
+        Eq. (7)'s: the accepted estimate.
+        """
         if self._extended is not None:
-            return (self._extended.model.tau1, self._extended.model.tau2)
+            return self._extended.tau
+        reconstructor = self._reconstructor
+        if isinstance(reconstructor, KalmanReconstructor):
+            return reconstructor.tau
         return self._tau
 
     @property
+    def reconstruction(self) -> str:
+        """What makes the published gas: 'kalman' (a filter is in use) or 'difference'."""
+        reconstructor = self._reconstructor
+        if self._extended is not None:
+            reconstructor = self._extended.reconstructor
+        if isinstance(reconstructor, KalmanReconstructor) and reconstructor.model is not None:
+            return "kalman"
+        return "difference"
+
+    @property
     def fusion_model(self) -> FusionModel | None:
-        """The Kalman filter's model once fitted (``reconstruction='kalman'``)."""
+        """The first-order Kalman filter's signal model in use (None without one)."""
         reconstructor = self._reconstructor
         return reconstructor.model if isinstance(reconstructor, KalmanReconstructor) else None
 
     @property
-    def fusion_error(self) -> str:
-        """Why the Kalman filter's signal model could not be fitted ('' when it could)."""
+    def signal_model_name(self) -> str:
+        """The signal model of the published gas ('' for Eq. (7); '(interim)' while it is)."""
         reconstructor = self._reconstructor
-        return reconstructor.error if isinstance(reconstructor, KalmanReconstructor) else ""
+        if self._extended is not None:
+            reconstructor = self._extended.reconstructor
+        if not isinstance(reconstructor, KalmanReconstructor) or reconstructor.model is None:
+            return ""
+        kind = reconstructor.model.kind
+        return f"{kind} (interim)" if reconstructor.interim else kind
+
+    @property
+    def fusion_note(self) -> str:
+        """What the signal model's fit could not do and what is used instead ('' when nothing)."""
+        if self._extended is not None:
+            return self._extended.note
+        reconstructor = self._reconstructor
+        return reconstructor.note if isinstance(reconstructor, KalmanReconstructor) else ""
 
     @property
     def window_samples(self) -> int:
@@ -133,21 +212,29 @@ class OnlineCompensator:
 
     @property
     def output_model(self) -> OutputModel | None:
-        """The output model set, in use or waiting for the sample period (None: first order)."""
-        if self._extended is not None:
-            return self._extended.model
-        return None if self._pending_output is None else self._pending_output[0]
+        """The output model set: in use, being built or waiting (None: first order)."""
+        for waiting in (self._wanted_output, self._building_output, self._pending_output):
+            if waiting is not None:
+                return waiting[0]
+        return None if self._extended is None else self._extended.model
+
+    @property
+    def jobs_idle(self) -> bool:
+        """Whether no build runs or waits (a replay can then compare outputs at once)."""
+        return not (self._running or self._wanted_filter or self._wanted_output)
 
     def use_output_model(
         self,
         model: OutputModel | None,
         origin_ns: int = 0,
-        record: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None = None,
-        prime: tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]] | None = None,
-    ) -> GasBatch:
-        """Publish the gas of ``model`` from the next pair on (None: back to first order).
+        record: _Pairs | None = None,
+    ) -> None:
+        """Publish the gas of ``model`` once it is built (None: first order from the next pair).
 
-        A model with the same effects as the one in use (a refit) keeps its ``since_ns``.
+        The model's filters are built by a job (inline by default) and run through the
+        newest pairs; it takes over at the next :meth:`add_pairs` after the job lands, which
+        also returns the gas its catching up completed: no stamp is skipped or repeated. A
+        model with the same effects as the one in use (a refit) keeps its ``since_ns``.
 
         Parameters
         ----------
@@ -157,43 +244,26 @@ class OnlineCompensator:
         record : (ndarray, ndarray, ndarray)
             Stamps (ns), tc1, tc2 of the fitted record, gap-free (the Kalman filter's signal
             model is fitted to its equivalent readings).
-        prime : (ndarray, ndarray, ndarray), optional
-            The newest pairs taken (stamps, tc1, tc2), gap-free: run through the new model
-            first, so that its filters are warm and no stamp is skipped at the switch.
-
-        Returns
-        -------
-        GasBatch
-            Gas the priming completed that was not published yet (publish it).
-
-        Before the sample period is known the model waits for it (:attr:`output_model`).
 
         Raises
         ------
         ValueError
             Without ``record`` for a model.
         """
-        previous, self._extended = self._extended, None
-        self._pending_output = None
+        self._wanted_output = self._pending_output = self._building_output = None
         if model is None:
-            return GasBatch.empty()
+            self._extended = None
+            return
         if record is None:
             raise ValueError("an output model needs its fitted record")
         if self._period is None:  # built once the period is learnt
             self._pending_output = (model, origin_ns, record)
-            return GasBatch.empty()
-        self._extended = ExtendedOutput(
-            model, origin_ns, self._config, self._period, record, self._published_until
-        )
-        if previous is not None and previous.model.name(True) == model.name(True):
-            self._extended.since_ns = previous.since_ns  # a refit of the same physics
-        if prime is None or prime[0].size < 2:
-            return GasBatch.empty()
-        stamps, tc1, tc2 = prime
-        contiguous = np.diff(stamps) * 1e-9 <= self._config.gap_factor * self._period
-        out = self._extended.reconstruct(stamps, tc1, tc2, contiguous)
-        self.counters["reconstructed"] += int(out.stamps_ns.size)
-        return self._published(GasBatch(out.stamps_ns, self._filter(out.gas), out.variance))
+        else:
+            self._wanted_output = (model, origin_ns, record)
+
+    def close(self) -> None:
+        """Stop the job runner (a worker process: abandoning a running build)."""
+        self._runner.close()
 
     def longest_segment(self) -> NDArray[np.float64]:
         """The window's longest gap-free stretch, shape (n, 2): tc1, tc2 in degrees C."""
@@ -214,11 +284,16 @@ class OnlineCompensator:
         self._estimator = None
         self._previous = None
         self._postfilter = None
-        self._reconstructor = None  # Eq. (7) with the kept τ until the next estimate lands
         self._restarted = True
         self._published_until = np.iinfo(np.int64).min  # the stamps start over
+        self._reconstructed_until = None
+        self.recent = RecentPairs(self.recent.capacity)
+        if isinstance(self._reconstructor, DifferenceReconstructor):
+            self._reconstructor = None  # Eq. (7) with the kept τ until the next estimate lands
+        # A Kalman filter is kept: the next pair does not follow its last, so it restarts.
         if self._extended is not None:
             self._extended.restart(stamps_start_over=True)
+            self._extended.published_until_ns = self._published_until
 
     def reconfigure(self, config: OnlineConfig) -> None:
         """Apply new settings, keeping the window's samples where they still fit."""
@@ -233,26 +308,147 @@ class OnlineCompensator:
             old.postfilter_order,
         ):
             self._postfilter = None
-        extended = self._extended
-        if extended is not None and (config.reconstruction, config.signal_model) != (
+        kind_changed = (config.reconstruction, config.signal_model) != (
             old.reconstruction,
             old.signal_model,
-        ):  # the same model, reconstructed the new way from the next pair on
+        )
+        extended = self._extended
+        if extended is not None and kind_changed:
+            # The same model, rebuilt the new way; it takes over when built.
             self.use_output_model(extended.model, extended.origin_ns, extended.record)
+            self._extended = extended
         if self._tau is None or self._period is None:
             return
         reconstructor = self._reconstructor
-        if (config.reconstruction, config.signal_model) != (
-            old.reconstruction,
-            old.signal_model,
-        ) or reconstructor is None:
-            self._reconstructor = make_reconstructor(
-                config, self._period, self._tau, self.longest_segment()
-            )
+        if kind_changed or reconstructor is None:
+            self._reconstructor = None
+            self._set_reconstructor()
         elif isinstance(reconstructor, KalmanReconstructor):
             reconstructor.configure(config)
         else:
             self._reconstructor = DifferenceReconstructor(config, self._period, self._tau)
+
+    # -- jobs ----------------------------------------------------------------------------------
+    def _set_reconstructor(self) -> None:
+        """The reconstructor the settings name, at the accepted τ (a filter build asked for)."""
+        assert self._tau is not None and self._period is not None
+        reconstructor = self._reconstructor
+        if self._config.reconstruction != "kalman":
+            self._wanted_filter = ""
+            if isinstance(reconstructor, DifferenceReconstructor):
+                reconstructor.retune(self._tau)
+            else:
+                self._reconstructor = DifferenceReconstructor(
+                    self._config, self._period, self._tau
+                )
+            return
+        if not isinstance(reconstructor, KalmanReconstructor):
+            reconstructor = KalmanReconstructor(self._config, self._period, self._tau)
+            self._reconstructor = reconstructor
+        reconstructor.retune(self._tau)
+        stretch = self.longest_segment().shape[0]
+        wanted = FilterPolicy.wanted(reconstructor, self._tau, stretch)
+        if wanted and not (wanted == "retune" and self._wanted_filter == "refit"):
+            self._wanted_filter = wanted
+
+    def _drive_jobs(self) -> GasBatch:
+        """Take a landed build over, start the next one; the gas a take-over completes.
+
+        With an inline runner a build lands as it starts, so this loops until nothing waits.
+        """
+        out: list[GasBatch] = []
+        while True:
+            outcome = self._runner.poll()
+            running, self._running = self._running, ""
+            if outcome is not None and running == "filter":
+                self._take_filter(outcome.value, outcome.error)
+            elif outcome is not None and running == "output":
+                out.append(self._take_output(outcome.value, outcome.error))
+            if self._runner.busy or not self._submit_next():
+                return GasBatch.concatenate(out)
+
+    def _submit_next(self) -> bool:
+        """Submit the output model or filter build that waits; whether one was."""
+        if self._wanted_output is not None and self._period is not None:
+            model, origin_ns, record = self._wanted_output
+            args = (model, origin_ns, self._config, self._period, record, self._prime())
+            if not self._runner.submit(build_output, *args):
+                return False
+            self._building_output, self._wanted_output = self._wanted_output, None
+            self._running = "output"
+            return True
+        reconstructor = self._reconstructor
+        if not self._wanted_filter or not isinstance(reconstructor, KalmanReconstructor):
+            self._wanted_filter = ""
+            return False
+        assert self._tau is not None and self._period is not None
+        refit = self._wanted_filter == "refit" or reconstructor.model is None
+        self._wanted_filter = ""
+        request = FilterRequest(
+            self._period,
+            self._tau,
+            self._config.signal_model,
+            self.longest_segment()[-FUSION_FIT_SAMPLES:] if refit else None,
+            None if refit else reconstructor.model,
+            self._prime(),
+        )
+        if not self._runner.submit(build_filter, request):
+            self._wanted_filter = "refit" if refit else "retune"  # the worker is warming up
+            return False
+        self._running = "filter"
+        return True
+
+    def _prime(self) -> _Pairs:
+        """The newest gap-free pairs already reconstructed (empty before any was)."""
+        until = self._reconstructed_until
+        empty = (np.empty(0, np.int64), np.empty(0), np.empty(0))
+        if until is None or self.recent.size == 0:
+            return empty
+        stamps, tc1, tc2 = self.recent.newest(self._config.gap_factor)[:3]
+        keep = stamps <= until
+        return stamps[keep][-PRIME_PAIRS:], tc1[keep][-PRIME_PAIRS:], tc2[keep][-PRIME_PAIRS:]
+
+    def _catch_up_pairs(self) -> _Pairs:
+        """The pairs already reconstructed, newest :data:`RECENT_S` of them (oldest first)."""
+        until = self._reconstructed_until
+        if until is None or self.recent.size == 0:
+            return (np.empty(0, np.int64), np.empty(0), np.empty(0))
+        stamps, tc1, tc2 = self.recent.columns()[:3]
+        keep = stamps <= until
+        return stamps[keep], tc1[keep], tc2[keep]
+
+    def _take_filter(self, build, error: str) -> None:
+        reconstructor = self._reconstructor
+        if not isinstance(reconstructor, KalmanReconstructor):
+            return  # the settings changed meanwhile
+        if error:
+            reconstructor.note = f"filter build failed: {error}"
+            return
+        reconstructor.use(build, self._catch_up_pairs())
+
+    def _take_output(self, output: ExtendedOutput | None, error: str) -> GasBatch:
+        building, self._building_output = self._building_output, None
+        if building is None or output is None or error:  # set aside meanwhile, or failed
+            if error:
+                self.output_note = f"output model not built: {error}"
+            return GasBatch.empty()
+        previous = self._extended
+        self._extended = output
+        if previous is not None and previous.model.name(True) == output.model.name(True):
+            output.since_ns = previous.since_ns  # a refit of the same physics
+        primed_until = output.published_until_ns  # the last pair it was run through
+        output.published_until_ns = self._published_until
+        stamps, tc1, tc2 = self._catch_up_pairs()
+        start = int(np.searchsorted(stamps, primed_until))
+        if start < stamps.size and stamps[start] != primed_until:
+            output.restart()  # the pairs it was primed on are gone: it starts afresh
+        if stamps.size - start < 2:
+            return GasBatch.empty()
+        stamps, tc1, tc2 = stamps[start:], tc1[start:], tc2[start:]
+        contiguous = np.diff(stamps) * 1e-9 <= self._config.gap_factor * (self._period or 0.0)
+        gas = output.reconstruct(stamps, tc1, tc2, contiguous)
+        self.counters["reconstructed"] += int(gas.stamps_ns.size)
+        return self._published(GasBatch(gas.stamps_ns, self._filter(gas.gas), gas.variance))
 
     # -- pairs ---------------------------------------------------------------------------------
     def add_pairs(self, stamps_ns: ArrayLike, tc1: ArrayLike, tc2: ArrayLike) -> GasBatch:
@@ -314,10 +510,13 @@ class OnlineCompensator:
         period: float,
     ) -> GasBatch:
         """Window the pairs and reconstruct what τ allows."""
+        if self.recent.capacity == PRIME_PAIRS:
+            self.recent = RecentPairs(max(PRIME_PAIRS, round(RECENT_S / period)))
         if self._pending_output is not None:
-            self.use_output_model(*self._pending_output)
+            self._wanted_output, self._pending_output = self._pending_output, None
         if self._estimator is None:
             self._estimator = WindowEstimator(self._config, period)
+        self.recent.add(stamps, tc1, tc2)
         linked = self._previous is not None
         if self._previous is not None:
             stamps = np.concatenate(([self._previous[0]], stamps))
@@ -336,8 +535,30 @@ class OnlineCompensator:
         if self._tau is None:
             self._hold(run)
             return GasBatch.empty()
+        taken = self._drive_jobs()
+        self._interim_filter()
         runs, self._backlog, self._backlog_rows = [*self._backlog, run], [], 0
-        return GasBatch.concatenate([self._reconstruct(*part) for part in runs])
+        return GasBatch.concatenate([taken, *(self._reconstruct(*part) for part in runs)])
+
+    def _interim_filter(self) -> None:
+        """While the first filter is being built elsewhere, fit the interim one here (once)."""
+        reconstructor = self._reconstructor
+        if (
+            (self._running != "filter" and not self._wanted_filter)
+            or not isinstance(reconstructor, KalmanReconstructor)
+            or reconstructor.model is not None
+            or reconstructor.note
+            or self._tau is None
+            or self._period is None
+        ):
+            return
+        reconstructor.use(
+            interim_build(self.longest_segment(), self._period, self._tau),
+            (np.empty(0, np.int64), np.empty(0), np.empty(0)),
+            interim=True,
+        )
+        if reconstructor.model is None:  # not even a random walk: Eq. (7) until the build
+            reconstructor.note = "interim random-walk model not fitted: Eq. (7) meanwhile"
 
     def _hold(self, run: _Run) -> None:
         """Keep pairs until the first τ, at most one window's worth (the oldest go first)."""
@@ -364,6 +585,7 @@ class OnlineCompensator:
         if self._extended is not None:
             lost = self._extended.lost
             out = self._extended.reconstruct(stamps, tc1, tc2, contiguous)
+            self._reconstructed_until = int(stamps[-1])
             self.counters["reconstructed"] += int(out.stamps_ns.size)
             self.counters["unreconstructed"] += int((~contiguous).sum()) + (
                 self._extended.lost - lost
@@ -377,6 +599,7 @@ class OnlineCompensator:
         self.counters["reconstructed"] += int(out_stamps.size)
         self.counters["unreconstructed"] += int((~contiguous).sum())
         gas, variance = self._reconstructor.reconstruct(stamps, tc1, tc2, steps_s, contiguous)
+        self._reconstructed_until = int(stamps[-1])
         return self._published(GasBatch(out_stamps, self._filter(gas), variance))
 
     def _published(self, batch: GasBatch) -> GasBatch:
@@ -404,16 +627,45 @@ class OnlineCompensator:
             )
         else:
             status = self._estimator.estimate(self._newest_stamp)
+        if status.accepted:
+            status = self._trusted(status)
         if status.accepted and status.estimate is not None and self._period is not None:
             self._tau = (status.estimate.tau1, status.estimate.tau2)
-            kalman = self._config.reconstruction == "kalman"
-            if self._reconstructor is None or (
-                kalman and not isinstance(self._reconstructor, KalmanReconstructor)
-            ):
-                self._reconstructor = make_reconstructor(
-                    self._config, self._period, self._tau, self.longest_segment()
-                )
-            else:
-                self._reconstructor.retune(self._tau, self.longest_segment)
+            self._set_reconstructor()
+            if self._runner.busy or self._running:
+                pass  # the landed build is taken over with the next pairs
+            elif self._wanted_filter or self._wanted_output:
+                self._submit_next()
         self.last_status = status
         return status
+
+    def _trusted(self, status: EstimateStatus) -> EstimateStatus:
+        """``status``, or it refused when the estimate is not pinned down (module notes)."""
+        estimate = status.estimate
+        assert estimate is not None
+        taus = (estimate.tau1, estimate.tau2)
+        reason = ""
+        for i, tau in enumerate(taus, start=1):
+            low = estimate.params.get(f"tau{i}_ci_low", math.nan)
+            high = estimate.params.get(f"tau{i}_ci_high", math.nan)
+            half = 0.5 * (high - low) / tau
+            if math.isfinite(half) and half > MAX_TAU_INTERVAL:
+                reason = (
+                    f"tau{i}'s 95 % interval {low:.4g} .. {high:.4g} s is wider than "
+                    f"+-{100 * MAX_TAU_INTERVAL:g} %: the window does not pin it down"
+                )
+                break
+        previous, self._last_attempt = self._last_attempt, taus
+        has_intervals = math.isfinite(estimate.params.get("tau1_ci_low", math.nan))
+        confirmed = previous is not None and all(
+            abs(new / old - 1.0) <= FIRST_AGREEMENT
+            for new, old in zip(taus, previous, strict=True)
+        )
+        if not reason and self._tau is None and not has_intervals and not confirmed:
+            reason = (
+                "first estimate not yet confirmed: it must agree within "
+                f"{100 * FIRST_AGREEMENT:g} % with the attempt before it"
+            )
+        if not reason:
+            return status
+        return replace(status, accepted=False, reason=reason)

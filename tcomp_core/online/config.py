@@ -7,13 +7,17 @@ and ``tcomp process``; the tuning constants of the engine live here too.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
+from .. import parameters
 from ..choices import RECONSTRUCT_FROM, RECONSTRUCTIONS, SIGNAL_MODELS, ReconstructFrom
-from ..estimators import DEFAULT_METHOD, METHODS, Estimate
+from ..estimators import Estimate
 from ..validation import MIN_SAMPLES
 
 __all__ = [
+    "ENGINE_PARAMETERS",
     "FIRST_ESTIMATE_ROWS",
     "FUSION_FIT_SAMPLES",
     "FUSION_REFIT_CHANGE",
@@ -47,16 +51,30 @@ FUSION_FIT_SAMPLES = 4096
 RATIO_MEMORY_FACTOR = 10.0
 #: Bytes the window holds per sample pair (a buffer twice the window of three float64 columns).
 WINDOW_BYTES_PER_SAMPLE = 48
+#: The node's parameters that configure the engine (fields of :class:`OnlineConfig`).
+ENGINE_PARAMETERS = tuple(p.name for p in parameters.PARAMETERS if p.scope == "engine")
+
+
+def _default(name: str) -> Any:
+    """The declared default of parameter ``name`` (:mod:`tcomp_core.parameters`)."""
+    return parameters.default(name)
 
 
 @dataclass(frozen=True, kw_only=True)
 class OnlineConfig:
-    """Settings of the online compensator (the node's parameters).
+    """Settings of the online engine: the node's parameters but its ROS ones, and two constants.
+
+    Every field but ``postfilter_order`` and ``gap_factor`` is a parameter of the node declared
+    in :mod:`tcomp_core.parameters`, which gives its default, range and description; the checks
+    here are those ranges and what ties the fields together.
 
     Attributes
     ----------
     window_s : float
         Length of the estimation window, seconds.
+    update_period_s : float
+        Re-estimation period, seconds (the node's timer; ``tcomp process``'s stamp-time
+        schedule); also sets when an estimate is STALE.
     method : str
         Estimator, one of :data:`tcomp_core.METHODS`.
     phi : float
@@ -66,23 +84,30 @@ class OnlineConfig:
     postfilter_hz : float
         Causal Butterworth low-pass on the reconstruction, Hz; 0 = off.
     postfilter_order : int
-        Order of that low-pass.
+        Order of that low-pass (not a parameter).
+    sync_slop_s : float
+        Largest stamp difference of a tc1/tc2 pair, seconds (0 = exact stamps).
+    reconstruction : {'kalman', 'difference'}
+        The causal Kalman filter of both sensors (default) or Eq. (7).
+    signal_model : {'auto', 'random-walk', 'integrated-random-walk', 'band-limited', \
+'periodic', 'autoregressive'}
+        Gas temperature model of the Kalman filter (:mod:`tcomp_core.fusion`).
     reconstruct_from : {'fused', 'tc1', 'tc2'}
         Which Eq. (7) reconstruction is output (``'difference'`` only).
-    reconstruction : {'difference', 'kalman'}
-        Eq. (7) through the difference equation, or the causal Kalman filter of both sensors.
-    signal_model : {'auto', 'random-walk', 'integrated-random-walk', 'band-limited', 'periodic'}
-        Gas temperature model of the Kalman filter (:mod:`tcomp_core.fusion`).
     tracking_memory_s : float
         Forgetting time constant of the tracking estimator, seconds; 0 = sliding window.
     sample_period_s : float
         Sample period of the pairs, seconds; 0 = learn it from the stamps.
+    silence_timeout_s : float
+        A sensor silent this long is an ERROR, seconds.
     gap_factor : float
-        A step longer than this many periods is a gap.
+        A step longer than this many periods is a gap (not a parameter).
     max_condition : float
         Estimates whose conditioning figure exceeds this are not accepted.
     max_model_error_pct : float
         Model error (fit error beyond the noise floor) above which the fit counts as poor.
+    queue_size : int
+        Unmatched samples kept per input.
     min_temperature_c, max_temperature_c : float
         Physical range of a reading, degrees C: samples outside it (or not finite) are invalid,
         counted and left out of estimation and output.
@@ -93,77 +118,89 @@ class OnlineConfig:
     discontinuity_s : float
         Stamps this far (seconds) behind the last matched stamp, several in a row, are a
         discontinuity (a clock reset, a replayed bag starting over): the engine restarts.
+    effects : str
+        Effects the background diagnosis adds to the first-order model (comma-separated,
+        ``'none'``), or ``'auto'``.
+    compensate_effects : bool
+        Publish the gas of an accepted background fit of ``effects``.
+    diagnosis_period_s : float
+        Period of the background diagnosis, seconds (0 = only when ``effects`` changes).
     """
 
-    window_s: float = 2.0
-    method: str = DEFAULT_METHOD
-    phi: float = 1.0
-    prefilter_hz: float = 0.0
-    postfilter_hz: float = 0.0
+    window_s: float = _default("window_s")
+    update_period_s: float = _default("update_period_s")
+    method: str = _default("method")
+    phi: float = _default("phi")
+    prefilter_hz: float = _default("prefilter_hz")
+    postfilter_hz: float = _default("postfilter_hz")
     postfilter_order: int = 2
-    reconstruct_from: str = "fused"
-    reconstruction: str = "difference"
-    signal_model: str = "random-walk"
-    tracking_memory_s: float = 0.0
-    sample_period_s: float = 0.0
+    sync_slop_s: float = _default("sync_slop_s")
+    reconstruction: str = _default("reconstruction")
+    signal_model: str = _default("signal_model")
+    reconstruct_from: str = _default("reconstruct_from")
+    tracking_memory_s: float = _default("tracking_memory_s")
+    sample_period_s: float = _default("sample_period_s")
+    silence_timeout_s: float = _default("silence_timeout_s")
     gap_factor: float = 1.5
-    max_condition: float = 1e3
-    max_model_error_pct: float = 10.0
-    min_temperature_c: float = -273.15
-    max_temperature_c: float = 2000.0
-    max_window_samples: int = 500_000
-    discontinuity_s: float = 10.0
+    max_condition: float = _default("max_condition")
+    max_model_error_pct: float = _default("max_model_error_pct")
+    queue_size: int = _default("queue_size")
+    min_temperature_c: float = _default("min_temperature_c")
+    max_temperature_c: float = _default("max_temperature_c")
+    max_window_samples: int = _default("max_window_samples")
+    discontinuity_s: float = _default("discontinuity_s")
+    effects: str = _default("effects")
+    compensate_effects: bool = _default("compensate_effects")
+    diagnosis_period_s: float = _default("diagnosis_period_s")
 
     @property
     def valid_range(self) -> tuple[float, float]:
         """``(min_temperature_c, max_temperature_c)``."""
         return self.min_temperature_c, self.max_temperature_c
 
+    @property
+    def slop_ns(self) -> int:
+        """``sync_slop_s`` in nanoseconds."""
+        return round(self.sync_slop_s * 1e9)
+
+    @property
+    def requested_effects(self) -> tuple[str, ...] | None:
+        """``effects`` as names (None: ``auto``; empty: the first-order model alone)."""
+        from ..compensation import parse_compensate_effects
+
+        return parse_compensate_effects(self.effects)
+
+    @classmethod
+    def from_parameters(cls, values: Mapping[str, Any]) -> OnlineConfig:
+        """The engine's settings among ``values`` (a node's parameters: extra names ignored)."""
+        return cls(**{name: values[name] for name in ENGINE_PARAMETERS if name in values})
+
     def __post_init__(self) -> None:
+        for name in ENGINE_PARAMETERS:
+            parameters.spec(name).check(getattr(self, name))
         checks = [
-            (self.window_s > 0.0, f"window_s={self.window_s!r} must be > 0 s"),
-            (self.method in METHODS, f"method={self.method!r} is not one of {METHODS}"),
-            (math.isfinite(self.phi) and self.phi > 0.0, f"phi={self.phi!r} must be > 0"),
-            (self.prefilter_hz >= 0.0, f"prefilter_hz={self.prefilter_hz!r} must be >= 0"),
-            (self.postfilter_hz >= 0.0, f"postfilter_hz={self.postfilter_hz!r} must be >= 0"),
             (1 <= self.postfilter_order <= 8, f"postfilter_order={self.postfilter_order!r}"),
-            (
-                self.reconstruct_from in RECONSTRUCT_FROM,
-                f"reconstruct_from={self.reconstruct_from!r} is not one of {RECONSTRUCT_FROM}",
-            ),
-            (
-                self.reconstruction in RECONSTRUCTIONS,
-                f"reconstruction={self.reconstruction!r} is not one of {RECONSTRUCTIONS}",
-            ),
-            (
-                self.signal_model in SIGNAL_MODELS,
-                f"signal_model={self.signal_model!r} is not one of {SIGNAL_MODELS}",
-            ),
-            (
-                math.isfinite(self.tracking_memory_s) and self.tracking_memory_s >= 0.0,
-                f"tracking_memory_s={self.tracking_memory_s!r} must be >= 0 s",
-            ),
-            (self.sample_period_s >= 0.0, f"sample_period_s={self.sample_period_s!r} < 0"),
             (self.gap_factor > 1.0, f"gap_factor={self.gap_factor!r} must be > 1"),
-            (self.max_condition >= 1.0, f"max_condition={self.max_condition!r} must be >= 1"),
-            (self.max_model_error_pct > 0.0, "max_model_error_pct must be > 0"),
             (
-                -273.15 <= self.min_temperature_c < self.max_temperature_c < math.inf,
+                self.min_temperature_c < self.max_temperature_c,
                 f"min_temperature_c={self.min_temperature_c!r}, max_temperature_c="
-                f"{self.max_temperature_c!r}: need -273.15 <= min < max, both finite",
+                f"{self.max_temperature_c!r}: need min < max",
             ),
             (
-                MIN_SAMPLES <= self.max_window_samples <= 10**8,
-                f"max_window_samples={self.max_window_samples!r} must lie in [{MIN_SAMPLES}, 1e8]",
+                self.max_window_samples >= MIN_SAMPLES,
+                f"max_window_samples={self.max_window_samples!r} must be >= {MIN_SAMPLES}",
             ),
             (
-                math.isfinite(self.discontinuity_s) and self.discontinuity_s > 0.0,
-                f"discontinuity_s={self.discontinuity_s!r} must be > 0 s",
+                self.diagnosis_period_s == 0.0
+                or self.diagnosis_period_s >= parameters.MIN_DIAGNOSIS_PERIOD_S,
+                f"diagnosis_period_s={self.diagnosis_period_s!r} must be 0 (no periodic "
+                f"diagnosis) or >= {parameters.MIN_DIAGNOSIS_PERIOD_S:g} s",
             ),
         ]
         for holds, message in checks:
             if not holds:
                 raise ValueError(message)
+        self.requested_effects  # noqa: B018 - raises ValueError on an unknown effect
         if self.sample_period_s > 0.0:
             needed = self.window_s / self.sample_period_s
             if needed > self.max_window_samples:

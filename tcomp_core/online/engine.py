@@ -15,10 +15,12 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..workers import JobRunner
 from .compensator import OnlineCompensator
 from .config import EstimateStatus, OnlineConfig
+from .diagnosis import DiagnosisPolicy
 from .extended import RecentPairs
-from .health import NO_DIAGNOSIS, NO_LATENCY, Health, HealthMonitor
+from .health import NO_LATENCY, Health, HealthMonitor, Level
 from .pairing import PairCounters, PairMatcher, Pairs
 from .reconstructors import GasBatch
 
@@ -43,46 +45,51 @@ class Engine:
     Parameters
     ----------
     config : OnlineConfig
-        The compensator's settings.
-    slop_ns : int
-        Largest stamp difference of a pair, ns (0 = exact stamps).
-    queue_size : int
-        Unmatched samples kept per input.
-    update_period_s : float
-        Re-estimation period, seconds (sets when an estimate is STALE).
-    silence_timeout_s : float
-        A sensor silent this long is an ERROR, seconds.
+        The compensator's settings (pairing, timing, estimation, reconstruction).
+    runner : JobRunner, optional
+        Where the Kalman filter and output models are built (inline by default; the node
+        passes a worker process, see :class:`~.compensator.OnlineCompensator`).
+    diagnosis_runner : JobRunner, optional
+        Where the background diagnoses run (:class:`~.diagnosis.DiagnosisPolicy`; a worker
+        process by default, spawned on the first job).
     """
 
     def __init__(
         self,
         config: OnlineConfig,
         *,
-        slop_ns: int = 0,
-        queue_size: int = 2000,
-        update_period_s: float = 0.5,
-        silence_timeout_s: float = 1.0,
+        runner: JobRunner | None = None,
+        diagnosis_runner: JobRunner | None = None,
     ) -> None:
-        self.compensator = OnlineCompensator(config)
-        self.matcher = PairMatcher(
-            slop_ns=slop_ns, queue_size=queue_size, valid_range=config.valid_range
-        )
+        self.compensator = OnlineCompensator(config, runner=runner)
+        #: When the background diagnosis runs and what becomes of its output models.
+        self.diagnosis = DiagnosisPolicy(config, diagnosis_runner)
+        self.matcher = self._new_matcher(config)
         self._behind = [0, 0]  # per input: trailing samples far behind the last matched stamp
         #: Why the latest message of each input could not be decoded ('' when none failed).
         self.last_malformed = ["", ""]
-        self.monitor = HealthMonitor(silence_timeout_s, stale_after_s(update_period_s))
+        self.monitor = HealthMonitor(
+            config.silence_timeout_s, stale_after_s(config.update_period_s)
+        )
         self._pairs: list[Pairs] = []
         #: Gas samples reconstructed so far.
         self.published = 0
-        #: The newest pairs with their stamps, when kept (:meth:`keep_recent`).
-        self.recent: RecentPairs | None = None
 
-    def keep_recent(self, capacity: int) -> None:
-        """Keep the newest ``capacity`` pairs with their stamps (0: keep none)."""
-        if capacity <= 0:
-            self.recent = None
-        elif self.recent is None or self.recent.capacity != capacity:
-            self.recent = RecentPairs(capacity)
+    @staticmethod
+    def _new_matcher(config: OnlineConfig) -> PairMatcher:
+        return PairMatcher(
+            slop_ns=config.slop_ns, queue_size=config.queue_size, valid_range=config.valid_range
+        )
+
+    @property
+    def config(self) -> OnlineConfig:
+        """The engine's settings."""
+        return self.compensator.config
+
+    @property
+    def recent(self) -> RecentPairs:
+        """The newest pairs taken, with their stamps (the compensator's)."""
+        return self.compensator.recent
 
     @property
     def counters(self) -> PairCounters:
@@ -94,31 +101,42 @@ class Engine:
         """The latest re-estimation."""
         return self.compensator.last_status
 
-    def set_matching(self, slop_ns: int, queue_size: int) -> None:
-        """A new pair matcher (its queues and counters start empty)."""
-        self.matcher = PairMatcher(
-            slop_ns=slop_ns,
-            queue_size=queue_size,
-            valid_range=self.compensator.config.valid_range,
-        )
-
     def reconfigure(self, config: OnlineConfig) -> None:
-        """Apply new compensator settings (and the physical range of the readings)."""
-        if config.valid_range != self.compensator.config.valid_range:
+        """Apply new settings: the pair matcher (its counters kept), timing and compensator.
+
+        A new slop, queue size or physical range starts the matcher's queues afresh.
+        """
+        old = self.compensator.config
+        if (config.slop_ns, config.queue_size, config.valid_range) != (
+            old.slop_ns,
+            old.queue_size,
+            old.valid_range,
+        ):
             counters = self.matcher.counters
-            self.set_matching(self.matcher.slop_ns, self.matcher.queue_size)
+            self.matcher = self._new_matcher(config)
             self.matcher.counters = counters
+        self.monitor.stale_after_s = stale_after_s(config.update_period_s)
+        self.monitor.silence_timeout_s = config.silence_timeout_s
         self.compensator.reconfigure(config)
+        self.diagnosis.reconfigure(config, self.compensator)
+
+    def close(self) -> None:
+        """Stop the worker processes (abandoning running jobs)."""
+        self.diagnosis.close()
+        self.compensator.close()
+
+    def periodic_diagnosis(self, now: float) -> bool:
+        """The diagnosis period's tick at ``now`` (s): see :meth:`.DiagnosisPolicy.periodic`."""
+        return self.diagnosis.periodic(now, self.compensator)
+
+    def poll_diagnosis(self, now: float) -> None:
+        """The report's tick at ``now`` (s): see :meth:`.DiagnosisPolicy.poll`."""
+        self.diagnosis.poll(now, self.compensator)
 
     def malformed(self, index: int, reason: str) -> None:
         """Count a message of input ``index`` that could not be decoded, and why."""
         self.matcher.counters.malformed[index] += 1
         self.last_malformed[index] = reason
-
-    def set_timing(self, update_period_s: float, silence_timeout_s: float) -> None:
-        """New re-estimation period and silence timeout, seconds."""
-        self.monitor.stale_after_s = stale_after_s(update_period_s)
-        self.monitor.silence_timeout_s = silence_timeout_s
 
     def add_samples(self, index: int, stamps_ns: ArrayLike, values: ArrayLike, now: float) -> None:
         """Take samples of input ``index`` (0 = tc1, 1 = tc2) in arrival order, at ``now`` (s).
@@ -198,8 +216,6 @@ class Engine:
         """
         if pairs is None:
             pairs = self.take_pairs()
-        if self.recent is not None:
-            self.recent.add(pairs.stamps_ns, pairs.tc1, pairs.tc2)
         out = self.compensator.add_pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2)
         self.published += int(out.stamps_ns.size)
         return out
@@ -213,7 +229,7 @@ class Engine:
     def report(
         self,
         now: float,
-        extra: Mapping[str, str] = NO_DIAGNOSIS | NO_LATENCY,
+        extra: Mapping[str, str] = NO_LATENCY,
         *,
         new_period: bool = True,
     ) -> Health:
@@ -224,17 +240,23 @@ class Engine:
         now : float
             Seconds on the caller's clock.
         extra : mapping of str to str
-            Key-values of the node's background diagnosis and latency (offline: none).
+            Key-values only the node knows: its publish latency and callback errors
+            (:data:`~.health.NO_LATENCY` offline).
         new_period : bool
             Start a new report period (rates and invalid samples count from ``now``).
         """
-        return self.monitor.report(
+        health = self.monitor.report(
             now,
             engine=self.compensator,
             counters=self.matcher.counters,
             published=self.published,
             max_model_error_pct=self.compensator.config.max_model_error_pct,
             malformed_reasons=self.last_malformed,
-            extra=extra,
+            extra={**self.diagnosis.values(now), **extra},
             new_period=new_period,
         )
+        suspect = health.values.get("top_suspect", "none")
+        status = self.last_status
+        if health.level == Level.WARN and status and status.poor_fit and suspect != "none":
+            return Health(health.level, f"{health.message}; top suspect: {suspect}", health.values)
+        return health

@@ -19,15 +19,53 @@ from numpy.typing import NDArray
 
 from ..compensation import OutputModel
 from ..compensation.stream import EquivalentStream
-from .config import OnlineConfig
-from .reconstructors import (
-    DifferenceReconstructor,
-    GasBatch,
-    KalmanReconstructor,
-    make_reconstructor,
-)
+from .config import FUSION_FIT_SAMPLES, OnlineConfig
+from .kalman import FilterRequest, KalmanReconstructor, build_filter
+from .reconstructors import DifferenceReconstructor, GasBatch
 
-__all__ = ["ExtendedOutput", "RecentPairs", "longest_stretch"]
+__all__ = ["ExtendedOutput", "RecentPairs", "build_output", "longest_stretch"]
+
+_Pairs = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
+
+
+def _reconstructor(
+    config: OnlineConfig,
+    period_s: float,
+    taus: tuple[float, float],
+    segment: NDArray[np.float64],
+) -> DifferenceReconstructor | KalmanReconstructor:
+    """The reconstructor ``config`` names at the model's τ, its filter fitted on ``segment``."""
+    if config.reconstruction != "kalman":
+        return DifferenceReconstructor(config, period_s, taus)
+    reconstructor = KalmanReconstructor(config, period_s, taus)
+    empty = (np.empty(0, np.int64), np.empty(0), np.empty(0))
+    request = FilterRequest(
+        period_s, taus, config.signal_model, segment[-FUSION_FIT_SAMPLES:], None, empty
+    )
+    reconstructor.use(build_filter(request), empty)
+    return reconstructor
+
+
+def build_output(
+    model: OutputModel,
+    origin_ns: int,
+    config: OnlineConfig,
+    period_s: float,
+    record: _Pairs,
+    prime: _Pairs,
+) -> ExtendedOutput:
+    """An :class:`ExtendedOutput` built and run through the newest pairs ``prime`` (a job).
+
+    Its filters are warm when it takes over; the gas of the priming pairs is not published
+    (:attr:`ExtendedOutput.published_until_ns` is the last of them until the caller sets it).
+    """
+    stamps = prime[0]
+    primed_until = int(stamps[-1]) if stamps.size else np.iinfo(np.int64).min
+    output = ExtendedOutput(model, origin_ns, config, period_s, record, primed_until)
+    if stamps.size >= 2:
+        contiguous = np.diff(stamps) * 1e-9 <= config.gap_factor * period_s
+        output.reconstruct(*prime, contiguous)
+    return output
 
 
 class ExtendedOutput:
@@ -75,21 +113,22 @@ class ExtendedOutput:
         stamps, tc1, tc2 = EquivalentStream(model, period_s, origin_ns).push(*record)
         taus = (model.tau1, model.tau2)
         segment = np.column_stack((tc1, tc2))
-        self._reconstructor: DifferenceReconstructor | KalmanReconstructor = make_reconstructor(
-            config, period_s, taus, segment
-        )
+        self._reconstructor = _reconstructor(config, period_s, taus, segment)
         #: Degrees C added to keep the first-order level (a ``dynamics`` piece; else 0).
         self.level_shift_c = 0.0
         if model.keeps_first_order_level and stamps.size > 10:
             # The same reconstruction of the fitted record with the level-setting effects left
             # first order gives the level to keep (compensation.offline.level_shift_c does
             # the same offline).
-            probe = make_reconstructor(config, period_s, taus, segment)
             reference = EquivalentStream(model.level_reference(), period_s, origin_ns)
             steps = np.diff(stamps) * 1e-9
             every = np.ones(steps.size, dtype=bool)
-            gas = probe.reconstruct(stamps, tc1, tc2, steps, every)[0]
-            level = probe.reconstruct(stamps, *reference.push(*record)[1:], steps, every)[0]
+            gas = _reconstructor(config, period_s, taus, segment).reconstruct(
+                stamps, tc1, tc2, steps, every
+            )[0]
+            level = _reconstructor(config, period_s, taus, segment).reconstruct(
+                stamps, *reference.push(*record)[1:], steps, every
+            )[0]
             settled = slice(gas.size // 10, None)  # past the causal filter's start
             self.level_shift_c = float(np.mean(level[settled] - gas[settled]))
         self._previous: tuple[int, float, float] | None = None
@@ -99,15 +138,34 @@ class ExtendedOutput:
         self.since_ns: int | None = None
 
     @property
+    def published_until_ns(self) -> int:
+        """Newest gas stamp published (gas up to it is not published again)."""
+        return self._published_until
+
+    @published_until_ns.setter
+    def published_until_ns(self, stamp_ns: int) -> None:
+        self._published_until = int(stamp_ns)
+
+    @property
+    def reconstructor(self) -> DifferenceReconstructor | KalmanReconstructor:
+        """The first-order reconstruction of the equivalent readings."""
+        return self._reconstructor
+
+    @property
+    def tau(self) -> tuple[float, float]:
+        """τ1, τ2 (s) of the gas it publishes: the model's."""
+        return (self.model.tau1, self.model.tau2)
+
+    @property
     def latency(self) -> int:
         """Samples a gas estimate comes out later than first order's."""
         return self._stream.latency
 
     @property
-    def error(self) -> str:
-        """Why the Kalman filter's signal model could not be fitted ('' when it could)."""
+    def note(self) -> str:
+        """What the Kalman filter's signal model fit could not do ('' when nothing)."""
         reconstructor = self._reconstructor
-        return reconstructor.error if isinstance(reconstructor, KalmanReconstructor) else ""
+        return reconstructor.note if isinstance(reconstructor, KalmanReconstructor) else ""
 
     def restart(self, stamps_start_over: bool = False) -> None:
         """Forget the stream: at a gap, or (``stamps_start_over``) a discontinuity of the stamps.

@@ -122,25 +122,32 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
     Returns
     -------
     dict of str to str
-        ``tau1_s``, ``tau2_s`` (in use, s), ``alpha``, ``method``, ``reconstruction``,
-        ``signal_model``, ``signal_model_error``, ``tracking_memory_s``, ``window_samples``,
-        ``window_s``, ``sample_period_s``, ``gaps``, ``fit_error_pct``, ``noise_floor_pct``,
+        ``tau1_s``, ``tau2_s`` (s) and ``alpha`` of the model that produces the published gas
+        (the output model's, the Kalman filter's or Eq. (7)'s), ``first_order_tau1_s``,
+        ``first_order_tau2_s`` (the accepted first-order estimate), ``method``,
+        ``reconstruction`` (what makes the published gas: ``kalman`` or ``difference``),
+        ``signal_model`` (the Kalman filter's, ``(interim)`` until the fitted one lands; ''
+        for Eq. 7), ``signal_model_note`` (what could not be fitted and what is used
+        instead), ``tracking_memory_s``, ``window_samples``, ``window_s``,
+        ``sample_period_s``, ``gaps``, ``fit_error_pct``, ``noise_floor_pct``,
         ``model_error_pct``, ``condition``, ``latest_tau1_s``, ``latest_tau2_s``, the 95 %
         intervals ``tau{1,2}_ci_{low,high}_s`` (nan for estimators without them),
         ``estimate_accepted`` and ``last_reason``.
     """
     config = engine.config
-    tau = engine.tau
+    tau = engine.published_tau
+    first_order = engine.tau
     estimate = None if status is None else status.estimate
-    fusion = engine.fusion_model
     return {
         "tau1_s": format_value(tau[0] if tau else math.nan),
         "tau2_s": format_value(tau[1] if tau else math.nan),
         "alpha": format_value(tau[0] / tau[1] if tau else math.nan),
+        "first_order_tau1_s": format_value(first_order[0] if first_order else math.nan),
+        "first_order_tau2_s": format_value(first_order[1] if first_order else math.nan),
         "method": config.method,
-        "reconstruction": config.reconstruction,
-        "signal_model": fusion.kind if fusion else "",
-        "signal_model_error": engine.fusion_error,
+        "reconstruction": engine.reconstruction,
+        "signal_model": engine.signal_model_name,
+        "signal_model_note": engine.fusion_note,
         "tracking_memory_s": format_value(config.tracking_memory_s),
         "window_samples": str(engine.window_samples),
         "window_s": format_value(config.window_s),

@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import parameters
 from ..errors import DataError, TcompError
 from ..io import (
     DEFAULT_COLUMNS,
@@ -41,6 +42,7 @@ from ..online import Engine, EngineStep, OnlineConfig, PairCounters, ScheduledEn
 from ..online.extended import RecentPairs
 from ..online.health import Level, format_value
 from ..online.schedule import REF
+from ..workers import InlineRunner
 from .output import BagOutput, CsvOutput
 from .output_model import FittedOutput, fit_stream_output_model
 
@@ -57,9 +59,9 @@ class ProcessConfig:
     Attributes
     ----------
     online : OnlineConfig
-        The compensator's settings (window, method, φ, filters, reconstruction, ...).
-    update_period_s : float
-        Re-estimation period in stamp time, seconds (the node's ``update_period_s``).
+        The compensator's settings, the node's parameters (window, method, reconstruction,
+        ``update_period_s`` in stamp time, ``sync_slop_s``, ``queue_size``,
+        ``silence_timeout_s`` in stamp time, ...).
     batch_s : float
         Pairs are handed to the compensator in batches of this much stamp time, seconds.
     topics : (tc1, tc2, ref or None)
@@ -79,22 +81,14 @@ class ProcessConfig:
         ``header.frame_id`` of ``gas_temperature``; '' = that of tc1.
     hardware_id : str
         ``hardware_id`` of the diagnostic statuses.
-    sync_slop_s : float
-        Largest stamp difference of a tc1/tc2 pair, seconds (0 = exact stamps; the node's
-        ``sync_slop_s``).
-    queue_size : int
-        Unmatched samples kept per input (the node's ``queue_size``).
-    silence_timeout_s : float
-        A sensor silent this long in stamp time is an ERROR in the diagnostics, seconds (the
-        node's ``silence_timeout_s``).
     effects : str
         The model the published gas uses: ``"none"`` (first order), ``"auto"`` (the
         diagnosis's final model) or comma-separated effects, fitted on the first
-        ``diagnose_samples`` pairs (:mod:`.output_model`).
+        ``diagnose_samples`` pairs (:mod:`.output_model`) and taken by the node's rules
+        (:func:`tcomp_core.online.diagnosis.judge_output`).
     """
 
     online: OnlineConfig = field(default_factory=OnlineConfig)
-    update_period_s: float = 0.5
     batch_s: float = 0.1
     topics: tuple[str, str, str | None] = DEFAULT_TOPICS
     columns: tuple[str, str, str | None] = DEFAULT_COLUMNS
@@ -103,21 +97,15 @@ class ProcessConfig:
     compress: bool = True
     overwrite: bool = False
     frame_id: str = ""
-    hardware_id: str = "thermocouple-pair"
-    sync_slop_s: float = 0.0
-    queue_size: int = 2000
-    silence_timeout_s: float = 1.0
+    hardware_id: str = str(parameters.default("hardware_id"))
     effects: str = "none"
 
+    @property
+    def update_period_s(self) -> float:
+        """Re-estimation period in stamp time, s (``online.update_period_s``)."""
+        return self.online.update_period_s
+
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.sync_slop_s) and 0.0 <= self.sync_slop_s <= 1.0):
-            raise ValueError(f"sync_slop_s={self.sync_slop_s!r} must be in [0, 1] s")
-        if self.queue_size < 1:
-            raise ValueError(f"queue_size={self.queue_size!r} must be >= 1")
-        if not (math.isfinite(self.silence_timeout_s) and self.silence_timeout_s > 0.0):
-            raise ValueError(f"silence_timeout_s={self.silence_timeout_s!r} must be > 0 s")
-        if not (math.isfinite(self.update_period_s) and self.update_period_s > 0.0):
-            raise ValueError(f"update_period_s={self.update_period_s!r} must be > 0 s")
         if not (math.isfinite(self.batch_s) and self.batch_s > 0.0):
             raise ValueError(f"batch_s={self.batch_s!r} must be > 0 s")
         if self.diagnose_samples < MIN_DIAGNOSIS_SAMPLES:
@@ -372,20 +360,26 @@ def _run(
     progress: Progress | None,
     started: float,
 ) -> ProcessResult:
+    # Every job inline: a fit lands at the stamp where it is asked for, on every run.
     engine = Engine(
-        config.online,
-        slop_ns=round(config.sync_slop_s * 1e9),
-        queue_size=config.queue_size,
-        update_period_s=config.update_period_s,
-        silence_timeout_s=config.silence_timeout_s,
+        replace(config.online, effects=config.effects),
+        runner=InlineRunner(),
+        diagnosis_runner=InlineRunner(),
     )
     schedule = ScheduledEngine(
-        engine, update_period_s=config.update_period_s, batch_s=config.batch_s
+        engine, update_period_s=config.online.update_period_s, batch_s=config.batch_s
     )
     fitted = _output_model(source, config)
     if fitted is not None:
-        engine.compensator.use_output_model(fitted.model, fitted.origin_ns, fitted.record)
-        engine.compensator.output_note = fitted.note(config.effects)
+        engine.diagnosis.adopt(
+            engine.compensator,
+            fitted.model,
+            fitted.origin_ns,
+            fitted.record,
+            fitted.origin_ns * 1e-9,
+            fitted.note(config.effects),
+            fitted.seconds,
+        )
     tail = RecentPairs(config.diagnose_samples)
     join_ref = _RefJoin()
     frame_id = config.frame_id
@@ -460,7 +454,9 @@ def _run(
         warnings=warnings,
         counters=counters,
         diagnosis=diagnosis,
-        output_model={} if fitted is None else fitted.model.summary(causal_stream=True),
+        output_model={}
+        if engine.compensator.output is None
+        else engine.compensator.output.model.summary(causal_stream=True),
         output_model_seconds=0.0 if fitted is None else fitted.seconds,
     )
 
@@ -478,8 +474,8 @@ def _output_model(source: Path, config: ProcessConfig) -> FittedOutput | None:
         topics=config.topics,
         columns=config.columns,
         samples=config.diagnose_samples,
-        slop_ns=round(config.sync_slop_s * 1e9),
-        queue_size=config.queue_size,
+        slop_ns=config.online.slop_ns,
+        queue_size=config.online.queue_size,
         valid_range=config.online.valid_range,
         gap_factor=config.online.gap_factor,
     )

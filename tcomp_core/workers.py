@@ -1,0 +1,211 @@
+"""Run slow jobs away from a real-time caller: in a worker process, or inline for a replay.
+
+The compensator node must publish every sample pair within milliseconds while model fits take
+from tens of milliseconds (a signal model) to seconds (a diagnosis). A :class:`JobRunner` takes
+one job at a time and lets the caller collect its outcome without blocking:
+
+    runner = ProcessRunner()
+    runner.submit(function, argument)   # False while a job runs
+    ...
+    outcome = runner.poll()             # None until the job is done, then its outcome once
+
+:class:`ProcessRunner` runs the job in one spawned worker process at a lower priority (the
+node); :class:`InlineRunner` runs it at once in the caller (``tcomp process``, which replays a
+record in stamp time, so a job's result lands at the same stamp on every run).
+
+The worker is started with ``spawn``, not ``fork``: a ROS node's process runs DDS threads, and
+a forked child would inherit their locks in whatever state they were. As with any spawned
+process, the worker imports the caller's main script: a script that submits jobs must guard its
+entry point with ``if __name__ == "__main__":`` (console scripts and ``python -m`` do), else
+every job reports that the worker died.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+__all__ = ["WORKER_NICENESS", "InlineRunner", "JobRunner", "Outcome", "ProcessRunner"]
+
+#: The worker runs this much nicer than its caller: on a small machine the real-time work of
+#: the caller comes first and the jobs take the spare CPU.
+WORKER_NICENESS = 10
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a job gave: its value, or why it failed.
+
+    Attributes
+    ----------
+    value : Any
+        The job's return value (None when it failed).
+    error : str
+        ``'ExceptionType: message'`` when the job raised or its worker died ('' otherwise).
+    """
+
+    value: Any = None
+    error: str = ""
+
+
+class JobRunner(Protocol):
+    """One job at a time; submit and poll never block."""
+
+    @property
+    def busy(self) -> bool:
+        """Whether a job is running."""
+
+    def submit(self, function: Callable[..., Any], /, *args: Any) -> bool:
+        """Start ``function(*args)`` unless a job runs; whether it started."""
+
+    def poll(self) -> Outcome | None:
+        """The outcome of a job that finished since the last call, else None."""
+
+    def close(self) -> None:
+        """Stop, abandoning a running job; later submits raise RuntimeError."""
+
+
+class InlineRunner:
+    """Runs each job at once in the caller: its outcome is ready at the next :meth:`poll`."""
+
+    def __init__(self) -> None:
+        self._outcome: Outcome | None = None
+        self._closed = False
+
+    @property
+    def busy(self) -> bool:
+        """Never: a job is done when :meth:`submit` returns."""
+        return False
+
+    def submit(self, function: Callable[..., Any], /, *args: Any) -> bool:
+        """Run ``function(*args)`` now; an exception becomes the outcome's error."""
+        if self._closed:
+            raise RuntimeError("the runner is closed")
+        try:
+            self._outcome = Outcome(function(*args))
+        except Exception as exc:  # the caller learns of any failure through poll()
+            self._outcome = Outcome(error=f"{type(exc).__name__}: {exc}")
+        return True
+
+    def poll(self) -> Outcome | None:
+        """The outcome of the last job, once."""
+        outcome, self._outcome = self._outcome, None
+        return outcome
+
+    def close(self) -> None:
+        """Refuse later jobs."""
+        self._closed = True
+
+
+def _lower_priority() -> None:
+    """Initializer of the worker process: yield the CPU to the caller."""
+    os.nice(WORKER_NICENESS)
+
+
+class ProcessRunner:
+    """One job at a time in a spawned worker process at a lower priority.
+
+    The worker is spawned on the first :meth:`submit` (or :meth:`start`) and kept for later
+    jobs (its start-up, mostly imports, takes a second or two). If it dies, the job's outcome
+    says so and the next submit starts a new one. Functions and arguments must pickle
+    (module-level functions, numpy arrays, dataclasses).
+    """
+
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._future: Future[Any] | None = None
+        self._outcome: Outcome | None = None
+        self._closed = False
+
+    @property
+    def busy(self) -> bool:
+        """Whether a job is running."""
+        return self._future is not None and not self._future.done()
+
+    def start(self) -> None:
+        """Spawn the worker now (so that the first job does not wait for its imports)."""
+        if self._closed:
+            raise RuntimeError("the runner is closed")
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(
+                max_workers=1,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_lower_priority,
+            )
+            self._future = self._pool.submit(_warm_up)
+
+    def submit(self, function: Callable[..., Any], /, *args: Any) -> bool:
+        """Start ``function(*args)`` in the worker unless a job runs; whether it started."""
+        if self._closed:
+            raise RuntimeError("the runner is closed")
+        if self.busy:
+            return False
+        self._collect()  # keep a finished, unread outcome for poll()
+        self.start()
+        assert self._pool is not None
+        try:
+            self._future = self._pool.submit(function, *args)
+        except BrokenProcessPool as exc:  # died between jobs: the next submit starts anew
+            self._drop_pool()
+            self._outcome = Outcome(error=f"the worker died: {exc}")
+            return False
+        return True
+
+    def poll(self) -> Outcome | None:
+        """The outcome of a job that finished since the last call, else None (never blocks)."""
+        self._collect()
+        outcome, self._outcome = self._outcome, None
+        return outcome
+
+    def close(self) -> None:
+        """Stop the worker, abandoning a running job; later calls do nothing."""
+        self._closed = True
+        pool, self._pool = self._pool, None
+        self._future = None
+        if pool is None:
+            return
+        # A running job is disposable: end the worker now instead of letting the caller's exit
+        # wait seconds for it (ProcessPoolExecutor has no public way before Python 3.14). The
+        # pool's manager thread then stops at once; waiting for it keeps it from racing the
+        # interpreter's exit hook (an ignored OSError on Python 3.11).
+        for worker in list((pool._processes or {}).values()):
+            worker.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+    def _drop_pool(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)  # its worker is gone: returns at once
+        self._pool = None
+
+    def _collect(self) -> None:
+        future = self._future
+        if future is None or not future.done():
+            return
+        self._future = None
+        try:
+            value = future.result()
+        except BrokenProcessPool as exc:
+            self._outcome = Outcome(error=f"the worker died: {exc}")
+            self._drop_pool()
+            return
+        except Exception as exc:  # the job raised, or its data failed to pickle
+            self._outcome = Outcome(error=f"{type(exc).__name__}: {exc}")
+            return
+        if value != _WARMED_UP:
+            self._outcome = Outcome(value)
+
+
+_WARMED_UP = "tcomp worker ready"
+
+
+def _warm_up() -> str:
+    """The worker's first task: import the numerical core so that jobs start at once."""
+    import tcomp_core.diagnose
+    import tcomp_core.fusion  # noqa: F401
+
+    return _WARMED_UP
