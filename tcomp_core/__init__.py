@@ -10,6 +10,7 @@ name is touched: ``tcomp_core.estimate(...)`` works as an eager import would.
 
 from __future__ import annotations
 
+import os
 import sys
 from importlib import import_module
 from types import ModuleType
@@ -23,6 +24,12 @@ from .errors import (
     PhysicalRangeError,
     TcompError,
 )
+
+# The numerical work here is small matrices (Kalman filters of 3 to 35 states, 3x3 scatter
+# solves) and long elementwise recursions: BLAS threads only contend for the cores, and on a
+# busy 2-core machine they made the signal-model fits 2.5x slower (README, "Performance").
+# Set before numpy is first imported; a value the user set is kept.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 if TYPE_CHECKING:
     from .estimators import Estimate, estimate

@@ -22,6 +22,7 @@ every job reports that the worker died.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 from collections.abc import Callable
@@ -127,8 +128,26 @@ class ProcessRunner:
         """Whether a job is running."""
         return self._future is not None and not self._future.done()
 
-    def start(self) -> None:
-        """Spawn the worker now (so that the first job does not wait for its imports)."""
+    @property
+    def worker_pids(self) -> list[int]:
+        """Process ids of the live worker (empty before it is spawned)."""
+        pool = self._pool
+        processes = getattr(pool, "_processes", None) or {}
+        return [process.pid for process in processes.values() if process.pid is not None]
+
+    def start(self, wait_s: float = 0.0) -> bool:
+        """Spawn the worker now, so that the first job does not wait for its imports.
+
+        Parameters
+        ----------
+        wait_s : float
+            Wait up to this long for it to be ready, s (0: return at once).
+
+        Returns
+        -------
+        bool
+            Whether the worker is ready (False while it starts).
+        """
         if self._closed:
             raise RuntimeError("the runner is closed")
         if self._pool is None:
@@ -138,6 +157,11 @@ class ProcessRunner:
                 initializer=_lower_priority,
             )
             self._future = self._pool.submit(_warm_up)
+        future = self._future
+        if wait_s > 0.0 and future is not None:
+            with contextlib.suppress(Exception):  # a failure shows in the next job's outcome
+                future.result(timeout=wait_s)
+        return not self.busy
 
     def submit(self, function: Callable[..., Any], /, *args: Any) -> bool:
         """Start ``function(*args)`` in the worker unless a job runs; whether it started."""

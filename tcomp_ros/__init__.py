@@ -1,5 +1,7 @@
 """tcomp_ros: thin rclpy nodes around :mod:`tcomp_core` (compensator and replay).
 
-The nodes arrive with the ROS issue; this package already ships the ament index marker,
-``package.xml`` and the parameter files so the distribution installs in a colcon workspace.
+Importing it imports :mod:`tcomp_core` first, which keeps BLAS single-threaded before numpy
+loads (see there).
 """
+
+import tcomp_core  # noqa: F401  (before rclpy and numpy)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any
@@ -63,6 +64,8 @@ __all__ = ["CompensatorNode", "descriptor", "main"]
 
 #: Period of the timer that drains the inbox, match pairs and publishes, seconds.
 PROCESS_PERIOD_S = 0.005
+#: The node waits this long at start for its fitting worker process to be ready, seconds.
+WORKER_START_S = 30.0
 #: Reliability of the input subscriptions by ``input_reliability``. Best effort (the default)
 #: receives from best-effort publishers (sensor drivers, REP 2003's SensorDataQoS) and reliable
 #: ones alike; reliable receives from reliable publishers only.
@@ -70,9 +73,14 @@ INPUT_RELIABILITY = {
     "best_effort": ReliabilityPolicy.BEST_EFFORT,
     "reliable": ReliabilityPolicy.RELIABLE,
 }
+#: Deep enough for the pairs held until the first τ, published in one go (up to a window).
 OUTPUT_QOS = QoSProfile(
     depth=1000, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE
 )
+#: Gas messages published per drain at most: the pairs held until the first τ and filter (up
+#: to a window) go out over several drains, never faster than a reliable subscriber's queue
+#: of :data:`OUTPUT_QOS`'s depth can take them.
+MAX_PUBLISH_PER_DRAIN = 500
 
 
 def _float_range(low: float, high: float) -> list[FloatingPointRange]:
@@ -121,7 +129,13 @@ class CompensatorNode(Node):
             OnlineConfig.from_parameters(self._values), runner=fits, diagnosis_runner=diagnoses
         )
         if fits is not None and self._values["reconstruction"] == "kalman":
-            fits.start()  # its imports take a second or two: ready by the first τ
+            # Its imports take seconds: wait for them here, before any sample is taken, so the
+            # first pairs are reconstructed with a fitted model instead of an interim one.
+            if not fits.start(wait_s=WORKER_START_S):
+                self.get_logger().warning(
+                    f"the fitting worker is not ready after {WORKER_START_S:g} s; the first "
+                    "pairs may be published with an interim model"
+                )
         # Per input: stamps (ns) and values of the messages not yet handed to the engine.
         self._inbox: list[tuple[list[int], list[float]]] = [([], []), ([], [])]
         self._received = [0, 0]
@@ -129,6 +143,7 @@ class CompensatorNode(Node):
         self._callback_errors = 0
         self._last_callback_error = ""
         self._latency = LatencyHistogram()
+        self._outbox: deque[GasBatch] = deque()  # gas waiting for the publisher
 
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -296,8 +311,22 @@ class CompensatorNode(Node):
             self._callback_errors += 1
             self._last_callback_error = f"pairs refused: {exc}"[:200]
             self.get_logger().warning(self._last_callback_error, throttle_duration_sec=5.0)
-            return
-        self._publish(out)
+            out = GasBatch.empty()
+        if out.stamps_ns.size:
+            self._outbox.append(out)
+        self._publish_outbox()
+
+    def _publish_outbox(self) -> None:
+        """Publish what waits, :data:`MAX_PUBLISH_PER_DRAIN` messages at most, oldest first."""
+        budget = MAX_PUBLISH_PER_DRAIN
+        while self._outbox and budget > 0:
+            batch = self._outbox.popleft()
+            if batch.stamps_ns.size > budget:
+                rest = GasBatch(*(column[budget:] for column in batch))
+                self._outbox.appendleft(rest)
+                batch = GasBatch(*(column[:budget] for column in batch))
+            budget -= batch.stamps_ns.size
+            self._publish(batch)
 
     def _publish(self, out: GasBatch) -> None:
         """Hand gas samples to the publisher and record their latency."""

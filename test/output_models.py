@@ -12,9 +12,16 @@ DT = 0.002
 
 
 def model_with(
-    effects: tuple[str, ...], params: dict, n: int = 5000, level_c: float = 600.0
+    effects: tuple[str, ...],
+    params: dict,
+    n: int = 5000,
+    level_c: float = 600.0,
+    **fields,
 ) -> OutputModel:
-    """An output model with given parameters over an n-sample record at 500 Hz."""
+    """An output model with given parameters over an n-sample record at 500 Hz.
+
+    ``fields`` sets other fields of the model (``error_pct``, ``at_bound``, ...).
+    """
     time = np.arange(n) * DT
     level = np.full(n, level_c)
     context = make_context(time, level, level, DT)
@@ -26,6 +33,7 @@ def model_with(
         pieces=tuple(
             Piece(e, "dynamics" if e == "calibration" else "compensated", "test") for e in effects
         ),
+        **fields,
     )
 
 

@@ -141,8 +141,8 @@ def test_a_dead_worker_is_reported_and_replaced(diagnoser):
     data = simulate_pair("multisine", noise_percent=1, duration=4, seed=3)
     args = (data.time, data.tc1, data.tc2, data.dt)
     assert diagnoser.submit(*args, effects=("conduction",), find_suspect=True)
-    (worker,) = diagnoser._pool._processes.values()
-    os.kill(worker.pid, signal.SIGKILL)
+    (pid,) = diagnoser.runner.worker_pids
+    os.kill(pid, signal.SIGKILL)
     failed = wait_for_result(diagnoser)
     assert "the diagnosis worker died" in failed["error"]
     assert diagnoser.submit(*args, effects=(), find_suspect=False)

@@ -222,6 +222,7 @@ def _diagnosis_with(effects, intervals, expected=()):
         error_pct=1.0,
         tau1=0.02,
         tau2=0.1,
+        at_bound=[],
     )
     return SimpleNamespace(
         source="test",

@@ -389,9 +389,7 @@ def test_auto_leaves_out_a_model_that_cannot_be_fitted(monkeypatch):
     assert "autoregressive not fitted" in result.note
     assert "periodic used instead of autoregressive" in result.note
     with pytest.raises(Exception, match="no signal model could be fitted"):
-        fit_fusion_model(
-            pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model="autoregressive"
-        )
+        fit_fusion_model(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model="autoregressive")
 
 
 def test_a_model_whose_smoother_is_not_finite_gives_way(monkeypatch):

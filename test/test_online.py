@@ -32,7 +32,7 @@ def _feed(engine, pair, batch=50):
 
 def test_every_pair_is_reconstructed_once_the_first_estimate_lands(pair_factory):
     pair = pair_factory("multisine", noise_percent=1.0, seed=2, duration=2.0)
-    engine = OnlineCompensator(OnlineConfig(window_s=1.0))
+    engine = OnlineCompensator(OnlineConfig(window_s=1.0, reconstruction="difference"))
     stamps, out_stamps, gas = _feed(engine, pair)
     # One output per pair but the last (each output is stamped with the pair it starts).
     np.testing.assert_array_equal(out_stamps, stamps[:-1])
@@ -73,7 +73,8 @@ def test_the_backlog_keeps_at_most_one_window(pair_factory):
 
 def test_reconstruction_matches_the_batch_reconstruction_with_the_same_tau(pair_factory):
     pair = pair_factory("ramp", noise_percent=0.5, seed=3, duration=1.0)
-    engine = OnlineCompensator(OnlineConfig(window_s=0.5), initial_tau=(pair.tau1, pair.tau2))
+    config = OnlineConfig(window_s=0.5, reconstruction="difference")
+    engine = OnlineCompensator(config, initial_tau=(pair.tau1, pair.tau2))
     _, _, gas = _feed(engine, pair)
     batch = reconstruct(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2)
     np.testing.assert_allclose(gas, batch.gas[: gas.size], rtol=1e-9)
@@ -130,7 +131,8 @@ def test_kalman_reconstruction_beats_the_difference_equation(
         if reconstruction == "kalman":
             assert engine.fusion_model is not None
             assert engine.fusion_model.kind == signal_model
-            assert engine.fusion_error == ""
+            assert engine.fusion_note == ""
+            assert engine.published_tau == (engine.fusion_model.tau1, engine.fusion_model.tau2)
             assert variance.shape == gas.shape and np.all(variance > 0.0)
         else:
             assert np.all(variance == 0.0)
@@ -178,11 +180,13 @@ def test_kalman_filter_restarts_after_a_gap_and_loses_no_sample(pair_factory):
 
 def test_switching_to_kalman_at_run_time_fits_the_signal_model_at_once(pair_factory):
     pair = pair_factory("ramp", noise_percent=1.0, seed=5, duration=4.0)
-    engine = OnlineCompensator(OnlineConfig(window_s=2.0))
+    engine = OnlineCompensator(OnlineConfig(window_s=2.0, reconstruction="difference"))
     _feed_and_estimate(engine, pair)
-    assert engine.fusion_model is None
+    assert engine.fusion_model is None and engine.reconstruction == "difference"
     engine.reconfigure(OnlineConfig(window_s=2.0, reconstruction="kalman"))
-    assert engine.fusion_model is not None
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18 + 10**10
+    engine.add_pairs(stamps[:10], pair.tc1[:10], pair.tc2[:10])  # the build is taken over
+    assert engine.fusion_model is not None and engine.reconstruction == "kalman"
     assert (engine.fusion_model.tau1, engine.fusion_model.tau2) == engine.tau
     with pytest.raises(ValueError, match="reconstruction='wiener'"):
         OnlineConfig(reconstruction="wiener")
@@ -246,7 +250,7 @@ def test_stamps_of_the_first_pairs_keep_every_nanosecond(pair_factory):
 def _engine_with(pair, seconds, update_period_s=0.5, silence_timeout_s=1.0):
     """An engine fed ``seconds`` of the pair in 0.1 s drains (now = newest stamp, s)."""
     engine = Engine(
-        OnlineConfig(), update_period_s=update_period_s, silence_timeout_s=silence_timeout_s
+        OnlineConfig(update_period_s=update_period_s, silence_timeout_s=silence_timeout_s)
     )
     stamps = np.round(pair.time * 1e9).astype(np.int64)
     step = round(0.1 / pair.dt)

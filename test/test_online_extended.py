@@ -70,16 +70,15 @@ def test_switching_models_mid_stream_skips_and_repeats_no_stamp():
     third = stamps.size // 3
     parts = []
     parts.append(compensator.add_pairs(stamps[:third], sim.tc1[:third], sim.tc2[:third]))
-    prime = (
-        stamps[third - 2000 : third],
-        sim.tc1[third - 2000 : third],
-        sim.tc2[third - 2000 : third],
-    )
-    parts.append(compensator.use_output_model(delay, ORIGIN_NS, (stamps, sim.tc1, sim.tc2), prime))
+    # Built (inline here) and primed on the newest pairs, it takes over with the next pairs.
+    compensator.use_output_model(delay, ORIGIN_NS, (stamps, sim.tc1, sim.tc2))
+    assert compensator.output_model is delay and compensator.output is None
     middle = slice(third, 2 * third)
     parts.append(compensator.add_pairs(stamps[middle], sim.tc1[middle], sim.tc2[middle]))
-    assert compensator.output_model is delay
-    parts.append(compensator.use_output_model(None))
+    assert compensator.output is not None and compensator.output.model is delay
+    assert compensator.published_tau == (delay.tau1, delay.tau2)
+    compensator.use_output_model(None)
+    assert compensator.output_model is None
     rest = slice(2 * third, None)
     parts.append(compensator.add_pairs(stamps[rest], sim.tc1[rest], sim.tc2[rest]))
     published = np.concatenate([part.stamps_ns for part in parts])
@@ -151,3 +150,42 @@ def test_a_discontinuity_or_a_new_reconstruction_keeps_the_output_model():
     assert compensator.output_model is model
     later = compensator.add_pairs(stamps[1000:], sim.tc1[1000:], sim.tc2[1000:])
     assert later.stamps_ns[0] == stamps[999] and np.all(later.variance > 0)  # Kalman now
+
+
+# -- the engine's rules for output models (tcomp_core.online.diagnosis) --------------------------
+def test_an_output_model_is_taken_only_when_it_passes_and_dropped_when_stale():
+    from tcomp_core.online import Engine
+    from tcomp_core.online.diagnosis import OUTPUT_STALE_PERIODS
+
+    sim, stamps = _record()
+    engine = Engine(OnlineConfig(compensate_effects=True, diagnosis_period_s=1.0))
+    engine.add_samples(0, stamps[:2000], sim.tc1[:2000], 0.0)
+    engine.add_samples(1, stamps[:2000], sim.tc2[:2000], 0.0)
+    engine.reconstruct()
+    compensator, policy = engine.compensator, engine.diagnosis
+    record = (stamps[:2000], sim.tc1[:2000], sim.tc2[:2000])
+    delay = STREAM_MODELS["delay"]
+    good = model_with(*delay, n=2000, error_pct=1.0, base_error_pct=10.0)
+    cases = [
+        (model_with(*delay, n=2000, error_pct=9.0, base_error_pct=10.0), "less than 20 %"),
+        (
+            model_with(*delay, n=2000, error_pct=1.0, base_error_pct=10.0, at_bound=("delay_s",)),
+            "bound (delay_s)",
+        ),
+        (model_with((), {}, n=2000, error_pct=1.0, base_error_pct=10.0), "no effect"),
+    ]
+    for refused, why in cases:
+        assert policy.take(compensator, good, int(stamps[0]), record, 5.0)
+        assert compensator.output_model is good
+        assert not policy.take(compensator, refused, int(stamps[0]), record, 5.0)
+        assert compensator.output_model is None and why in compensator.output_note
+    assert policy.take(compensator, good, int(stamps[0]), record, 5.0)
+    engine.periodic_diagnosis(5.0 + OUTPUT_STALE_PERIODS * 1.0 - 0.1)
+    assert compensator.output_model is good  # fresh still
+    engine.periodic_diagnosis(5.0 + OUTPUT_STALE_PERIODS * 1.0 + 0.1)
+    assert compensator.output_model is None
+    assert compensator.output_note.startswith("stale")
+    values = engine.report(9.0).values
+    assert values["output_model"] == "first-order" and values["output_model_note"].startswith(
+        "stale"
+    )

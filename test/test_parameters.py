@@ -21,10 +21,10 @@ SHIPPED = Path(__file__).resolve().parents[1] / "config" / "compensator.yaml"
 
 
 def _yaml_values(path: Path) -> dict[str, object]:
-    from rclpy.parameter import parameter_dict_from_yaml_file
+    from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
 
-    found = parameter_dict_from_yaml_file(str(path), wildcard=True)
-    return {name: parameter.value for name, parameter in found.items()}
+    found = parameter_dict_from_yaml_file(str(path), use_wildcard=True)
+    return {name: Parameter.from_parameter_msg(msg).value for name, msg in found.items()}
 
 
 def test_the_shipped_yaml_holds_every_parameter_at_its_declared_default():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -57,9 +58,11 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     parser.add_argument(
         "--reconstruction",
         choices=BATCH_RECONSTRUCTIONS,
-        default="difference",
-        help="difference: Eq. (7) (default); kalman: RTS smoother of both sensors; "
-        "kalman-causal: the forward filter alone, as the node runs it",
+        default="kalman",
+        help="kalman (default): the RTS smoother of both sensors, the best gas offline; "
+        "kalman-causal: the forward filter alone, as the node runs it; difference: the "
+        "paper's Eq. (7). When no signal model can be fitted the Kalman reconstructions fall "
+        "back to one that can, and to Eq. (7) when none can, and say so",
     )
     parser.add_argument(
         "--signal-model",
@@ -158,19 +161,25 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
 
 
 def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
-    """``reconstruct --reconstruction kalman[-causal]``."""
+    """``reconstruct --reconstruction kalman[-causal]``; Eq. (7) when no model can be used."""
     import numpy as np
 
-    from ..fusion import fit_fusion_model, fuse
+    from ..errors import EstimationError
+    from ..fusion import fuse
     from ..metrics import reconstruction_error_percent
 
-    if args.postfilter_hz is not None or args.combine != "inverse-variance":
-        raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
-    model, _, _ = fit_fusion_model(
-        record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model
-    )
+    _check_difference_options(args)
     causal = args.reconstruction == "kalman-causal"
-    fused = fuse(record.tc1, record.tc2, record.dt, tau1, tau2, model=model, causal=causal)
+    try:
+        fused = fuse(
+            record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model, causal=causal
+        )
+    except EstimationError as exc:
+        print(f"tcomp reconstruct: warning: {exc}; the gas is Eq. (7)'s", file=sys.stderr)
+        return _run_difference(record, args, tau1, tau2)
+    if fused.note:
+        print(f"tcomp reconstruct: note: {fused.note}", file=sys.stderr)
+    model = fused.model
     settings = f"q = {model.q:.4g}"
     if model.kind in ("band-limited", "periodic"):
         settings += f", {model.freq_hz:.4g} Hz, level q = {model.level_q:.4g}"
@@ -190,6 +199,16 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
     if args.png:
         _plot(args, record, gas, ref)
     return 0
+
+
+def _check_difference_options(args: argparse.Namespace) -> None:
+    """Refuse the options of Eq. (7) with a Kalman reconstruction."""
+    if args.postfilter_hz is not None or args.combine != "inverse-variance":
+        raise TcompError(
+            "--postfilter-hz and --combine apply to --reconstruction difference (Eq. 7); the "
+            f"Kalman {'filter' if args.reconstruction == 'kalman-causal' else 'smoother'} "
+            "needs neither"
+        )
 
 
 def _run_compensated(
@@ -238,8 +257,7 @@ def _run_compensated(
         )
         gas = recon.gas + shift
     else:
-        if args.postfilter_hz is not None or args.combine != "inverse-variance":
-            raise TcompError("--postfilter-hz and --combine apply to --reconstruction difference")
+        _check_difference_options(args)
         causal = args.reconstruction == "kalman-causal"
         result = compensate(
             model,

@@ -150,6 +150,11 @@ class BackgroundDiagnoser:
         return self._runner.busy
 
     @property
+    def runner(self) -> JobRunner:
+        """Where the jobs run."""
+        return self._runner
+
+    @property
     def latest(self) -> dict[str, Any] | None:
         """The result of the last finished job seen by :meth:`poll` or :meth:`submit`, if any."""
         return self._latest

@@ -26,7 +26,13 @@ from ..validation import check_pair, check_sample_interval
 from .kalman import innovation_log_likelihood
 from .signal_model import MODELS, FusionModel, ModelChoice, ModelKind, butterworth_unit_variance
 
-__all__ = ["FIT_FAILURES", "SignalModelFits", "fit_fusion_model", "fit_signal_models"]
+__all__ = [
+    "FIT_FAILURES",
+    "QUICK_MODELS",
+    "SignalModelFits",
+    "fit_fusion_model",
+    "fit_signal_models",
+]
 
 #: Smallest noise standard deviation used, as a fraction of the signal's standard deviation:
 #: keeps the Riccati equation well posed on noise-free data.
@@ -53,6 +59,9 @@ BAND_LIMITED_ORDERS = (2, 4, 8)
 CUTOFF_RANGE = (1e-3, 0.9)
 #: Models ``auto`` compares: all of them.
 AUTO_MODELS: tuple[ModelKind, ...] = MODELS
+#: The models whose fits take a fraction of a second: all but the band-limited one (its cut-off
+#: scan and three orders take seconds). A stream's first fit compares these, the next all.
+QUICK_MODELS: tuple[ModelKind, ...] = tuple(kind for kind in MODELS if kind != "band-limited")
 #: Orders of the autoregressive model of the gas's changes tried (Akaike chooses).
 AR_ORDERS = (8, 16, 24, 32)
 #: Search range of log10(q / q_YW), q_YW the Yule–Walker innovation variance.
@@ -409,12 +418,20 @@ class SignalModelFits:
         """Log-likelihood of every model fitted, nats."""
         return {model.kind: value for model, value in self.ranked}
 
-    def note(self, chosen: FusionModel | None = None) -> str:
-        """What the fit could not do and what was used instead ('' when nothing to say)."""
-        chosen = chosen if chosen is not None else (self.ranked[0][0] if self.ranked else None)
-        parts = [f"{kind} not fitted ({reason})" for kind, reason in self.failures.items()]
-        if chosen is not None and self.requested not in ("auto", chosen.kind):
-            parts.append(f"{chosen.kind} used instead of {self.requested}")
+    def note(self, used: str | None) -> str:
+        """What the fit could not do and what was used instead ('' when nothing to say).
+
+        Parameters
+        ----------
+        used : str or None
+            The kind of the model used (None: none could be).
+        """
+        # 'auto' compares what can be fitted; a candidate that cannot is news only when it was
+        # asked for by name, or when nothing could be used.
+        failures = self.failures if self.requested != "auto" or used is None else {}
+        parts = [f"{kind} not fitted ({reason})" for kind, reason in failures.items()]
+        if used is not None and self.requested not in ("auto", used):
+            parts.append(f"{used} used instead of {self.requested}")
         return "; ".join(parts)
 
 
@@ -433,6 +450,7 @@ def fit_signal_models(
     sigma2: float | None = None,
     model: ModelChoice = "auto",
     fallback: bool = True,
+    auto_models: tuple[ModelKind, ...] = AUTO_MODELS,
 ) -> SignalModelFits:
     """Fit the signal model asked for (or every one, 'auto') and rank what could be fitted.
 
@@ -456,6 +474,9 @@ def fit_signal_models(
         Signal model; 'auto' fits those of :data:`AUTO_MODELS`.
     fallback : bool
         Fit the others when a named model fails.
+    auto_models : tuple of str
+        The models 'auto' (and a fallback) fits: all by default; :data:`QUICK_MODELS` for a
+        first fit in a fraction of the time.
 
     Returns
     -------
@@ -471,14 +492,20 @@ def fit_signal_models(
     dt = check_sample_interval(dt)
     if model != "auto" and model not in MODELS:
         raise ValueError(f"model={model!r} is not 'auto' or one of {', '.join(MODELS)}")
+    for name, tau in (("tau1", tau1), ("tau2", tau2)):
+        if not (math.isfinite(tau) and tau > 0.0):
+            raise ValueError(f"{name}={tau!r} s must be finite and > 0")
+    for name, given in (("sigma1", sigma1), ("sigma2", sigma2)):
+        if given is not None and not (math.isfinite(given) and given >= 0.0):
+            raise ValueError(f"{name}={given!r}: a noise standard deviation must be >= 0")
     failures: dict[str, str] = {}
     try:
         fit = _prepare(first, second, dt, tau1, tau2, sigma1, sigma2)
     except FIT_FAILURES as exc:
         return SignalModelFits([], {model: f"no noise levels or gas variance: {exc}"}, model)
     fitted: list[tuple[FusionModel, float]] = []
-    kinds: tuple[ModelKind, ...] = AUTO_MODELS if model == "auto" else (model,)
-    for attempt in (kinds, tuple(k for k in AUTO_MODELS if k != model)):
+    kinds: tuple[ModelKind, ...] = auto_models if model == "auto" else (model,)
+    for attempt in (kinds, tuple(k for k in auto_models if k != model)):
         for kind in attempt:
             try:
                 candidate = _fit_kind(fit, kind)
@@ -564,6 +591,6 @@ def fit_fusion_model(
         tc1, tc2, dt, tau1, tau2, sigma1=sigma1, sigma2=sigma2, model=model, fallback=False
     )
     if not fits.ranked:
-        raise EstimationError(f"no signal model could be fitted: {fits.note()}")
+        raise EstimationError(f"no signal model could be fitted: {fits.note(None)}")
     best, log_likelihood = fits.ranked[0]
     return best, log_likelihood, fits.candidates

@@ -133,7 +133,7 @@ def fuse(
         if gas is None:
             failures[fitted.kind] = "numerically unstable on this record (non-finite output)"
             continue
-        note = SignalModelFits(fits.ranked, failures, fits.requested).note(fitted)
+        note = SignalModelFits(fits.ranked, failures, fits.requested).note(fitted.kind)
         return FusionResult(
             time=np.arange(first.size, dtype=np.float64) * fitted.dt,
             gas=gas,
@@ -144,7 +144,7 @@ def fuse(
             causal=causal,
             note=note,
         )
-    reasons = SignalModelFits([], failures, fits.requested).note()
+    reasons = SignalModelFits([], failures, fits.requested).note(None)
     raise EstimationError(f"no signal model of the gas could be used: {reasons}")
 
 

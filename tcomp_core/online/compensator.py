@@ -346,8 +346,20 @@ class OnlineCompensator:
             reconstructor = KalmanReconstructor(self._config, self._period, self._tau)
             self._reconstructor = reconstructor
         reconstructor.retune(self._tau)
-        stretch = self.longest_segment().shape[0]
-        wanted = FilterPolicy.wanted(reconstructor, self._tau, stretch)
+        self._want_filter()
+
+    def _want_filter(self) -> None:
+        """Ask for the filter build :class:`~.kalman.FilterPolicy` calls for, if any."""
+        reconstructor = self._reconstructor
+        if not isinstance(reconstructor, KalmanReconstructor) or self._tau is None:
+            return
+        assert self._estimator is not None
+        wanted = FilterPolicy.wanted(
+            reconstructor,
+            self._tau,
+            self.longest_segment().shape[0],
+            self._estimator.capacity,
+        )
         if wanted and not (wanted == "retune" and self._wanted_filter == "refit"):
             self._wanted_filter = wanted
 
@@ -359,11 +371,12 @@ class OnlineCompensator:
         out: list[GasBatch] = []
         while True:
             outcome = self._runner.poll()
-            running, self._running = self._running, ""
-            if outcome is not None and running == "filter":
-                self._take_filter(outcome.value, outcome.error)
-            elif outcome is not None and running == "output":
-                out.append(self._take_output(outcome.value, outcome.error))
+            if outcome is not None:
+                running, self._running = self._running, ""
+                if running == "filter":
+                    self._take_filter(outcome.value, outcome.error)
+                elif running == "output":
+                    out.append(self._take_output(outcome.value, outcome.error))
             if self._runner.busy or not self._submit_next():
                 return GasBatch.concatenate(out)
 
@@ -384,6 +397,7 @@ class OnlineCompensator:
         assert self._tau is not None and self._period is not None
         refit = self._wanted_filter == "refit" or reconstructor.model is None
         self._wanted_filter = ""
+        first = reconstructor.model is None or reconstructor.interim
         request = FilterRequest(
             self._period,
             self._tau,
@@ -391,6 +405,7 @@ class OnlineCompensator:
             self.longest_segment()[-FUSION_FIT_SAMPLES:] if refit else None,
             None if refit else reconstructor.model,
             self._prime(),
+            quick=first and not isinstance(self._runner, InlineRunner),
         )
         if not self._runner.submit(build_filter, request):
             self._wanted_filter = "refit" if refit else "retune"  # the worker is warming up
@@ -535,19 +550,34 @@ class OnlineCompensator:
         if self._tau is None:
             self._hold(run)
             return GasBatch.empty()
+        if self._awaiting_filter() and not (self._running or self._wanted_filter):
+            self._want_filter()  # the first fit waits for enough of a stretch
         taken = self._drive_jobs()
-        self._interim_filter()
+        if self._awaiting_filter():
+            capacity = self._estimator.capacity
+            if self._backlog_rows + run[3].size <= capacity:
+                self._hold(run)  # reconstructed with the fitted filter once it lands
+                return taken
+            self._interim_filter()  # the build is slow: publish with the interim meanwhile
         runs, self._backlog, self._backlog_rows = [*self._backlog, run], [], 0
         return GasBatch.concatenate([taken, *(self._reconstruct(*part) for part in runs)])
+
+    def _awaiting_filter(self) -> bool:
+        """Whether the first Kalman filter is being built elsewhere and none is in use yet."""
+        reconstructor = self._reconstructor
+        return (
+            isinstance(reconstructor, KalmanReconstructor)
+            and reconstructor.model is None
+            and not reconstructor.note  # a build that found no model: Eq. (7), say so
+            and self._extended is None
+        )
 
     def _interim_filter(self) -> None:
         """While the first filter is being built elsewhere, fit the interim one here (once)."""
         reconstructor = self._reconstructor
         if (
-            (self._running != "filter" and not self._wanted_filter)
-            or not isinstance(reconstructor, KalmanReconstructor)
+            not isinstance(reconstructor, KalmanReconstructor)
             or reconstructor.model is not None
-            or reconstructor.note
             or self._tau is None
             or self._period is None
         ):

@@ -141,6 +141,8 @@ class DiagnosisPolicy:
         self._output_fitted_at = math.nan  # when the data of the output model were taken
         #: A job is to start as soon as the window is long enough and the worker free.
         self.wanted = self.effects_set
+        #: Jobs started so far.
+        self.started = 0
         self.log: list[tuple[str, str]] = []
 
     @property
@@ -217,6 +219,7 @@ class DiagnosisPolicy:
             self.log.append(("warning", f"diagnosis not started: {self._error}"))
             return False
         if started:
+            self.started += 1
             self._submitted_at = now
             self._submitted = (self._effects, record)
             self.wanted = False

@@ -100,11 +100,6 @@ class ProcessConfig:
     hardware_id: str = str(parameters.default("hardware_id"))
     effects: str = "none"
 
-    @property
-    def update_period_s(self) -> float:
-        """Re-estimation period in stamp time, s (``online.update_period_s``)."""
-        return self.online.update_period_s
-
     def __post_init__(self) -> None:
         if not (math.isfinite(self.batch_s) and self.batch_s > 0.0):
             raise ValueError(f"batch_s={self.batch_s!r} must be > 0 s")

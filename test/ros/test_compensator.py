@@ -44,7 +44,7 @@ def test_tau_from_diagnostics_converges_within_two_percent(harness):
 def test_gas_temperature_stamps_count_and_values(harness):
     data = simulate_pair("sinusoid", noise_percent=0.0, duration=5.0, seed=1)
     stamps = stamps_for(data.tc1.size, data.dt)
-    h = harness(window_s=2.0, update_period_s=0.1)
+    h = harness(window_s=2.0, update_period_s=0.1, reconstruction="difference")
     first = 1500
     h.feed(stamps[:first], data.tc1[:first], data.tc2[:first])
     h.next_diagnostics(lambda s: values(s)["estimate_accepted"] == "true")
@@ -303,14 +303,16 @@ def test_bad_effects_are_rejected_and_leave_the_node_unchanged(harness):
         [Parameter("effects", value="conduction"), Parameter("method", value="nope")]
     )
     assert not results.successful
-    assert node.get_parameter("effects").value == ""
+    assert node.get_parameter("effects").value == "none"
     assert node.get_parameter("diagnosis_period_s").value == 0.0
     assert values(node.health_status())["effects"] == "none"
     assert node.set_parameters([Parameter("effects", value=" delay, conduction")])[0].successful
     found = values(node.health_status())
     assert found["effects"] == "delay,conduction"
     assert found["effects_error_pct"] == "nan"  # no data yet: no job
-    assert not node.start_diagnosis()
+    engine = node.engine
+    assert not engine.diagnosis.start(0.0, engine.compensator)
+    assert engine.diagnosis.started == 0
 
 
 def test_bad_effects_at_start_are_refused(ros_context):
@@ -320,23 +322,25 @@ def test_bad_effects_at_start_are_refused(ros_context):
         )
 
 
-class FailingDiagnoser:
+class FailingRunner:
     """Stands in for the worker: every job fails in it, or (``start_fails``) cannot start."""
 
     busy = False
 
     def __init__(self):
         self.start_fails = False
-        self.results = []
+        self.outcomes = []
 
-    def submit(self, *args, **kwargs):
+    def submit(self, function, *args):
+        from tcomp_core.workers import Outcome
+
         if self.start_fails:
             raise RuntimeError("no worker process could start")
-        self.results.append({"error": "EstimationError: fitting the effect 'delay' failed"})
+        self.outcomes.append(Outcome(error="EstimationError: fitting the effect 'delay' failed"))
         return True
 
     def poll(self):
-        return self.results.pop() if self.results else None
+        return self.outcomes.pop() if self.outcomes else None
 
     def close(self):
         pass
@@ -344,9 +348,12 @@ class FailingDiagnoser:
 
 @pytest.mark.slow
 def test_a_failed_diagnosis_is_reported_and_the_node_carries_on(harness):
+    from tcomp_core.online.diagnosis import DiagnosisPolicy
+
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=10)
     h = harness(window_s=3.0, update_period_s=0.1, effects="delay", diagnosis_period_s=1.0)
-    h.node._diagnoser = failing = FailingDiagnoser()
+    failing = FailingRunner()
+    h.node.engine.diagnosis = DiagnosisPolicy(h.node.engine.config, failing)
     h.feed(stamps_for(data.tc1.size, data.dt), data.tc1, data.tc2)
     status = h.next_diagnostics(lambda s: "delay" in values(s)["diagnosis_error"])
     assert level(status) == "OK"
@@ -366,7 +373,7 @@ def test_the_timer_diagnoses_only_a_poor_fit(harness):
     h.feed(stamps_for(good.tc1.size, good.dt), good.tc1, good.tc2)
     h.next_diagnostics(lambda s: level(s) == "OK")
     h.settle(2.5)  # two ticks of the diagnosis timer
-    assert math.isnan(h.node._submitted_at)  # the model fits: no job
+    assert h.node.engine.diagnosis.started == 0  # the model fits: no job
     bag = read_record(BAGS / "conduction_500hz")
     poor = harness(
         window_s=4.0, update_period_s=0.2, max_model_error_pct=5.0, diagnosis_period_s=1.0
@@ -374,7 +381,7 @@ def test_the_timer_diagnoses_only_a_poor_fit(harness):
     poor.feed(stamps_for(2000, bag.dt), bag.tc1[:2000], bag.tc2[:2000])
     poor.next_diagnostics(lambda s: "poor fit" in s.message, timeout=10.0)
     assert poor.spin_until(
-        poor.executor, lambda: math.isfinite(poor.node._submitted_at), 5.0
+        poor.executor, lambda: poor.node.engine.diagnosis.started > 0, 5.0
     )  # the fit is poor: the timer starts a job
 
 
@@ -418,32 +425,21 @@ def test_compensate_effects_switches_the_published_gas_to_the_diagnosed_model(ha
 
 
 def test_a_fit_that_fails_the_checks_or_goes_stale_falls_back_to_first_order(harness):
+    """The engine's rules, seen through the node's diagnostics (test_online_extended has them
+    through the engine alone)."""
     from output_models import STREAM_MODELS, model_with
 
     data = simulate_pair("multisine", noise_percent=1.0, duration=3.0, seed=3)
     stamps = stamps_for(data.tc1.size, data.dt)
     h = harness(window_s=2.0, update_period_s=0.2, compensate_effects=True, diagnosis_period_s=1.0)
     h.feed(stamps[:1000], data.tc1[:1000], data.tc2[:1000])
-    node = h.node
-    model = model_with(*STREAM_MODELS["delay"], n=1000)
-    node._submitted = (None, (stamps[:1000], data.tc1[:1000], data.tc2[:1000]))
-    node._submitted_at = node._now()
-    fit = {"output_model": model, "error_pct": 1.0, "base_error_pct": 10.0, "at_bound": []}
-    node._accept_output(fit)
-    assert node.engine.compensator.output_model is model
-    node._accept_output({**fit, "error_pct": 9.0})  # a 10 % fall only: not significant
-    assert node.engine.compensator.output_model is None
-    assert "less than 20 %" in node.engine.compensator.output_note
-    node._accept_output({**fit, "at_bound": ["delay_s"]})
-    assert node.engine.compensator.output_model is None
-    assert "bound (delay_s)" in node.engine.compensator.output_note
-    node._accept_output(fit)
-    node._output_fitted_at = node._now() - 10.0  # three diagnosis periods of 1 s ago and more
-    node._check_output_age()
-    assert node.engine.compensator.output_model is None
-    assert node.engine.compensator.output_note.startswith("stale")
+    node, engine = h.node, h.node.engine
+    record = (stamps[:1000], data.tc1[:1000], data.tc2[:1000])
+    weak = model_with(*STREAM_MODELS["delay"], n=1000, error_pct=9.0, base_error_pct=10.0)
+    assert not engine.diagnosis.take(engine.compensator, weak, int(stamps[0]), record, 0.0)
+    found = values(node.health_status())
+    assert found["output_model"] == "first-order"
+    assert "less than 20 %" in found["output_model_note"]
     h.feed(stamps[1000:], data.tc1[1000:], data.tc2[1000:])  # first order publishes on
     found = values(h.next_diagnostics())
-    assert found["output_model"] == "first-order" and found["output_model_note"].startswith(
-        "stale"
-    )
+    assert found["output_model"] == "first-order"

@@ -99,14 +99,20 @@ def _drive_node(node: CompensatorNode, messages, batch_s: float, update_s: float
 
 
 def _offline_node(ros_context, config: ProcessConfig) -> CompensatorNode:
-    """A node with the settings of ``config`` on the stamp-time clock, no background diagnosis."""
+    """A node with the settings of ``config`` on the stamp-time clock, no periodic diagnosis.
+
+    Its jobs (the Kalman filter's builds) run inline, at the stamp where they are asked for, as
+    ``tcomp process`` runs them; a node in a worker process takes them over when they land.
+    """
     return CompensatorNode(
         context=ros_context,
+        background=False,
         parameter_overrides=[
             Parameter("use_sim_time", value=True),
             Parameter("window_s", value=config.online.window_s),
-            Parameter("update_period_s", value=config.update_period_s),
+            Parameter("update_period_s", value=config.online.update_period_s),
             Parameter("reconstruction", value=config.online.reconstruction),
+            Parameter("signal_model", value=config.online.signal_model),
             Parameter("diagnosis_period_s", value=0.0),
         ],
     )
@@ -137,7 +143,7 @@ def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path,
     node = _offline_node(ros_context, config)
     try:
         node_stamps, node_gas, node_statuses = _drive_node(
-            node, _messages(bag), config.batch_s, config.update_period_s
+            node, _messages(bag), config.batch_s, config.online.update_period_s
         )
     finally:
         node.destroy_node()
@@ -183,18 +189,25 @@ def test_process_with_effects_equals_the_node_given_the_same_model(ros_context, 
         columns=config.columns,
         samples=config.diagnose_samples,
         slop_ns=0,
-        queue_size=config.queue_size,
+        queue_size=config.online.queue_size,
         valid_range=config.online.valid_range,
         gap_factor=config.online.gap_factor,
     )
     assert fitted.model.params == result.output_model["params"]
     node = _offline_node(ros_context, config)
     try:
-        node.use_output_model(
-            fitted.model, fitted.origin_ns, fitted.record, note=fitted.note(config.effects)
+        # Taken by the same rule as process takes it (judged, then built inline).
+        engine = node.engine
+        assert engine.diagnosis.adopt(
+            engine.compensator,
+            fitted.model,
+            fitted.origin_ns,
+            fitted.record,
+            fitted.origin_ns * 1e-9,
+            fitted.note(config.effects),
         )
         node_stamps, node_gas, node_statuses = _drive_node(
-            node, _messages(bag), config.batch_s, config.update_period_s
+            node, _messages(bag), config.batch_s, config.online.update_period_s
         )
     finally:
         node.destroy_node()
