@@ -128,14 +128,14 @@ class CompensatorNode(Node):
         self._engine = Engine(
             OnlineConfig.from_parameters(self._values), runner=fits, diagnosis_runner=diagnoses
         )
-        if fits is not None and self._values["reconstruction"] == "kalman":
-            # Its imports take seconds: wait for them here, before any sample is taken, so the
-            # first pairs are reconstructed with a fitted model instead of an interim one.
-            if not fits.start(wait_s=WORKER_START_S):
-                self.get_logger().warning(
-                    f"the fitting worker is not ready after {WORKER_START_S:g} s; the first "
-                    "pairs may be published with an interim model"
-                )
+        # The worker's imports take seconds: wait for them here, before any sample is taken,
+        # so the first pairs are reconstructed with a fitted model instead of an interim one.
+        kalman = self._values["reconstruction"] == "kalman"
+        if fits is not None and kalman and not fits.start(wait_s=WORKER_START_S):
+            self.get_logger().warning(
+                f"the fitting worker is not ready after {WORKER_START_S:g} s; the first "
+                "pairs may be published with an interim model"
+            )
         # Per input: stamps (ns) and values of the messages not yet handed to the engine.
         self._inbox: list[tuple[list[int], list[float]]] = [([], []), ([], [])]
         self._received = [0, 0]
@@ -322,9 +322,8 @@ class CompensatorNode(Node):
         while self._outbox and budget > 0:
             batch = self._outbox.popleft()
             if batch.stamps_ns.size > budget:
-                rest = GasBatch(*(column[budget:] for column in batch))
+                batch, rest = batch.split(budget)
                 self._outbox.appendleft(rest)
-                batch = GasBatch(*(column[:budget] for column in batch))
             budget -= batch.stamps_ns.size
             self._publish(batch)
 

@@ -49,6 +49,12 @@ class GasBatch(NamedTuple):
         """No samples."""
         return cls(np.empty(0, dtype=np.int64), np.empty(0), np.empty(0))
 
+    def split(self, count: int) -> tuple[GasBatch, GasBatch]:
+        """The first ``count`` samples and the rest."""
+        head = GasBatch(self.stamps_ns[:count], self.gas[:count], self.variance[:count])
+        tail = GasBatch(self.stamps_ns[count:], self.gas[count:], self.variance[count:])
+        return head, tail
+
     @classmethod
     def concatenate(cls, parts: list[GasBatch]) -> GasBatch:
         """One batch of several, in the given order."""
