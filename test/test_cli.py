@@ -78,7 +78,8 @@ def test_estimate_all_methods_table(simulated, capsys):
 @pytest.mark.parametrize("suffix", ["gas.csv", "gas_bag"])
 def test_reconstruct_round_trip_recovers_gas(simulated, tmp_path, suffix, capsys):
     output = tmp_path / suffix
-    assert main(["reconstruct", str(simulated[1]), "-o", str(output)]) == 0
+    args = ["reconstruct", str(simulated[1]), "-o", str(output), "--reconstruction", "difference"]
+    assert main(args) == 0
     printed = capsys.readouterr().out
     assert "e_Tg (combined)" in printed
     source = read_record(simulated[0])
@@ -103,6 +104,30 @@ def test_reconstruct_round_trip_recovers_gas(simulated, tmp_path, suffix, capsys
     assert gas.size == source.tc1.size - 1
     # Noise-free data and exact time constants: the zero-order-held gas comes back exactly.
     np.testing.assert_allclose(gas, source.ref[:-1], rtol=1e-8)
+
+
+def test_reconstruct_defaults_to_the_smoother_and_falls_back_to_eq7(
+    simulated, tmp_path, capsys, monkeypatch
+):
+    output = tmp_path / "gas.csv"
+    assert main(["reconstruct", str(simulated[0]), "-o", str(output)]) == 0
+    printed = capsys.readouterr().out
+    assert "e_Tg (kalman) = " in printed  # the RTS smoother of both sensors
+    smoothed = read_record(output, columns=("tc1", "tc2", "gas")).ref
+    # No signal model can be used (here: none fits): Eq. (7), said on stderr, exit 0.
+    import tcomp_core.fusion.record as record
+    from tcomp_core.fusion import SignalModelFits
+
+    def nothing_fits(*args, model="auto", **kwargs):
+        return SignalModelFits([], {"random-walk": "no steady state"}, model)
+
+    monkeypatch.setattr(record, "fit_signal_models", nothing_fits)
+    assert main(["reconstruct", str(simulated[0]), "-o", str(output), "--force"]) == 0
+    captured = capsys.readouterr()
+    assert "no signal model of the gas could be used" in captured.err
+    assert "Eq. (7)" in captured.err and "e_Tg (combined)" in captured.out
+    fallback = read_record(output, columns=("tc1", "tc2", "gas")).ref
+    assert fallback.size == smoothed.size and not np.array_equal(fallback, smoothed)
 
 
 def test_reconstruct_refuses_to_overwrite(simulated, tmp_path, capsys):
