@@ -41,6 +41,7 @@ from .estimation import WindowEstimator
 from .extended import ExtendedOutput, RecentPairs, build_output
 from .kalman import (
     PRIME_PAIRS,
+    FilterBuild,
     FilterPolicy,
     FilterRequest,
     KalmanReconstructor,
@@ -123,6 +124,7 @@ class OnlineCompensator:
         # Jobs: the one running ('filter' or 'output') and what waits for the runner.
         self._runner: JobRunner = runner if runner is not None else InlineRunner()
         self._running = ""
+        self._building_for: KalmanReconstructor | None = None  # of the filter build running
         self._wanted_filter = ""  # 'refit' or 'retune' waiting for the runner
         self._wanted_output: tuple[OutputModel, int, _Pairs] | None = None
         #: Why the published gas is first order although output models were asked for, or
@@ -410,7 +412,7 @@ class OnlineCompensator:
         if not self._runner.submit(build_filter, request):
             self._wanted_filter = "refit" if refit else "retune"  # the worker is warming up
             return False
-        self._running = "filter"
+        self._running, self._building_for = "filter", reconstructor
         return True
 
     def _prime(self) -> _Pairs:
@@ -432,11 +434,12 @@ class OnlineCompensator:
         keep = stamps <= until
         return stamps[keep], tc1[keep], tc2[keep]
 
-    def _take_filter(self, build, error: str) -> None:
+    def _take_filter(self, build: FilterBuild | None, error: str) -> None:
+        built_for, self._building_for = self._building_for, None
         reconstructor = self._reconstructor
-        if not isinstance(reconstructor, KalmanReconstructor):
-            return  # the settings changed meanwhile
-        if error:
+        if not isinstance(reconstructor, KalmanReconstructor) or reconstructor is not built_for:
+            return  # the settings changed meanwhile: a build for them follows
+        if error or build is None:
             reconstructor.note = f"filter build failed: {error}"
             return
         reconstructor.use(build, self._catch_up_pairs())

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import parameters
 from ..errors import DataError
 
 __all__ = [
@@ -279,7 +280,7 @@ class PairMatcher:
     def __init__(
         self,
         slop_ns: int = 0,
-        queue_size: int = 1000,
+        queue_size: int = int(parameters.default("queue_size")),
         valid_range: tuple[float, float] | None = None,
     ) -> None:
         slop_ns = _integer("slop_ns", slop_ns)
