@@ -152,7 +152,7 @@ def test_a_build_that_does_not_land_gives_way_to_the_interim_filter(sine):
     while stream.feed(1) == 0:
         assert stream.fed - held <= 1.0 / sine.dt + BATCH  # at most a window is held
     assert compensator.signal_model_name == "random-walk (interim)"
-    stamps, gas = stream.published()
+    stamps, _gas = stream.published()
     np.testing.assert_array_equal(stamps, stream.stamps[: stream.fed - 1])
     runner.finish()  # the fitted filter lands at last and replaces it
     stream.feed(2)
