@@ -214,7 +214,7 @@ class OnlineCompensator:
 
     @property
     def output_model(self) -> OutputModel | None:
-        """The output model set: in use, being built or waiting (None: first order)."""
+        """The output model set: being built or waiting, else in use (None: first order)."""
         for waiting in (self._wanted_output, self._building_output, self._pending_output):
             if waiting is not None:
                 return waiting[0]
@@ -553,16 +553,36 @@ class OnlineCompensator:
         if self._tau is None:
             self._hold(run)
             return GasBatch.empty()
+        return self._release(run)
+
+    def poll_jobs(self) -> GasBatch:
+        """Take over a build that landed, start the next; the gas that completes.
+
+        :meth:`add_pairs` does this first; a caller whose drains bring no pair (a node whose
+        sensors went quiet, a replay that ended) calls it so that a build lands anyway and the
+        pairs held for it go out.
+        """
+        if self._pending_output is not None and self._period is not None:
+            self._wanted_output, self._pending_output = self._pending_output, None
+        if self._tau is None or self._estimator is None:
+            return self._drive_jobs()
+        return self._release(None)
+
+    def _release(self, run: _Run | None) -> GasBatch:
+        """Drive the jobs, then reconstruct the held pairs and ``run`` unless a filter is due."""
+        assert self._estimator is not None
         if self._awaiting_filter() and not (self._running or self._wanted_filter):
             self._want_filter()  # the first fit waits for enough of a stretch
         taken = self._drive_jobs()
+        runs = [*self._backlog, *([] if run is None else [run])]
         if self._awaiting_filter():
-            capacity = self._estimator.capacity
-            if self._backlog_rows + run[3].size <= capacity:
-                self._hold(run)  # reconstructed with the fitted filter once it lands
+            rows = sum(part[3].size for part in runs)
+            if rows <= self._estimator.capacity:
+                if run is not None:
+                    self._hold(run)  # reconstructed with the fitted filter once it lands
                 return taken
             self._interim_filter()  # the build is slow: publish with the interim meanwhile
-        runs, self._backlog, self._backlog_rows = [*self._backlog, run], [], 0
+        self._backlog, self._backlog_rows = [], 0
         return GasBatch.concatenate([taken, *(self._reconstruct(*part) for part in runs)])
 
     def _awaiting_filter(self) -> bool:

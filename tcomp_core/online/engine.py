@@ -209,6 +209,9 @@ class Engine:
     def reconstruct(self, pairs: Pairs | None = None) -> GasBatch:
         """Reconstruct the pairs matched since the last call (or ``pairs``).
 
+        Also takes over a filter or output model built meanwhile
+        (:meth:`OnlineCompensator.poll_jobs`).
+
         Raises
         ------
         DataError
@@ -216,7 +219,10 @@ class Engine:
         """
         if pairs is None:
             pairs = self.take_pairs()
-        out = self.compensator.add_pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2)
+        if len(pairs):
+            out = self.compensator.add_pairs(pairs.stamps_ns, pairs.tc1, pairs.tc2)
+        else:  # a build may land, and the pairs held for it go out, without new pairs
+            out = self.compensator.poll_jobs()
         self.published += int(out.stamps_ns.size)
         return out
 

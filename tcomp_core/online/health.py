@@ -86,14 +86,16 @@ LIVE_ONLY_KEYS: tuple[str, ...] = tuple(NO_LATENCY)
 def output_values(engine: OnlineCompensator) -> dict[str, str]:
     """Which model the published gas temperature uses, as diagnostic key-values.
 
-    ``output_model`` (``first-order`` or ``first-order+effect+...``), its held-out error
-    ``output_model_error_pct``, ``output_model_since`` (stamp of the first gas sample published
-    with it, ns; empty before), ``output_model_tau{1,2}_s``, ``output_model_level_shift_c``,
-    ``output_model_latency_samples``, ``output_model_pieces`` (how each effect is treated) and
-    ``output_model_note`` (the caller's reason for the choice).
+    ``output_model`` (``first-order`` or ``first-order+effect+...``: the model in use), its
+    held-out error ``output_model_error_pct``, ``output_model_since`` (stamp of the first gas
+    sample published with it, ns; empty before), ``output_model_tau{1,2}_s``,
+    ``output_model_level_shift_c``, ``output_model_latency_samples``, ``output_model_pieces``
+    (how each effect is treated), ``output_model_pending`` (a model set and being built, which
+    takes over when built; '' when none) and ``output_model_note`` (the reason for the choice).
     """
     output = engine.output
-    model = engine.output_model
+    model = None if output is None else output.model
+    pending = engine.output_model
     pieces = model.stream_pieces() if model is not None else ()
     return {
         "output_model": model.name(causal_stream=True) if model is not None else "first-order",
@@ -106,6 +108,9 @@ def output_values(engine: OnlineCompensator) -> dict[str, str]:
         "output_model_level_shift_c": format_value(output.level_shift_c if output else 0.0),
         "output_model_latency_samples": str(output.latency if output else 0),
         "output_model_pieces": "; ".join(f"{p.effect}: {p.handling}" for p in pieces),
+        "output_model_pending": ""
+        if pending is None or pending is model
+        else pending.name(causal_stream=True),
         "output_model_note": engine.output_note,
     }
 

@@ -129,7 +129,7 @@ def test_kalman_reconstruction_and_tracking_by_name(harness):
     h.feed(stamps, data.tc1, data.tc2)
     found = values(h.next_diagnostics(lambda s: values(s)["signal_model"] == "periodic"))
     assert found["reconstruction"] == "kalman"
-    assert found["signal_model_error"] == ""
+    assert found["signal_model_note"] == ""
     assert float(found["tracking_memory_s"]) == 0.5
     assert float(found["tau1_s"]) == pytest.approx(data.tau1, rel=0.05)
     assert h.spin_until(h.executor, lambda: len(h.gas) == h.node.engine.published, 5.0)
@@ -258,8 +258,9 @@ def test_poor_fit_names_the_suspect_and_effects_make_the_error_fall_live(harness
     # The first-order model fits poorly (model error about 8 %) ...
     h.next_diagnostics(lambda s: "poor fit" in s.message, timeout=10.0)
     # ... so the diagnosis (here started by hand, not by the timer) looks for the missing effect.
-    assert h.node.start_diagnosis()
-    assert not h.node.start_diagnosis()  # one job at a time
+    engine, now = h.node.engine, h.node.get_clock().now().nanoseconds * 1e-9
+    assert engine.diagnosis.start(now, engine.compensator)
+    assert not engine.diagnosis.start(now, engine.compensator)  # one job at a time
     status = h.next_diagnostics(
         lambda s: values(s)["top_suspect"] != "none", timeout=DIAGNOSIS_DEADLINE_S
     )
@@ -272,7 +273,7 @@ def test_poor_fit_names_the_suspect_and_effects_make_the_error_fall_live(harness
     assert found["diagnosis_error"] == ""
     # The operator adds the effect: a job starts at once, and the error falls.
     assert h.node.set_parameters([Parameter("effects", value="conduction")])[0].successful
-    assert h.node._diagnoser.busy
+    assert engine.diagnosis.busy and engine.diagnosis.started == 2
     # The first report naming the effect may or may not carry its fit yet (the job can finish
     # within a report period): wait for the fit.
     h.next_diagnostics(lambda s: values(s)["effects"] == "conduction")
