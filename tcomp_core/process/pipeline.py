@@ -39,6 +39,7 @@ from ..io import (
     open_stream,
 )
 from ..online import Engine, EngineStep, OnlineConfig, PairCounters, ScheduledEngine
+from ..online.diagnosis import diagnosis_values
 from ..online.extended import RecentPairs
 from ..online.health import Level, format_value
 from ..online.schedule import REF
@@ -209,7 +210,18 @@ def _diagnose(
         result = diagnose(record)
     except (TcompError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return f"failed: {exc}", {"samples": str(stamps.size)}, Level.ERROR
-    top = result.suspects[0] if result.suspects else None
+    top = next((suspect for suspect in result.suspects if suspect.significant), None)
+    effects = tuple(result.final.effects)
+    found = {  # as the node's background diagnosis reports a job (one vocabulary)
+        "base_error_pct": result.base.error_pct,
+        "error_pct": result.final.error_pct,
+        "tau1": result.final.tau1,
+        "tau2": result.final.tau2,
+        "top_suspect": top.effect if top else "none",
+        "top_suspect_error_pct": top.error_pct if top else math.nan,
+        "seconds": time.perf_counter() - started,
+        "requested": effects,
+    }
     values = {
         "verdict": result.verdict,
         "samples": str(stamps.size),
@@ -217,15 +229,9 @@ def _diagnose(
         "last_stamp_s": f"{int(stamps[-1]) * 1e-9:.9f}",
         "base_tau1_s": format_value(result.base.tau1),
         "base_tau2_s": format_value(result.base.tau2),
-        "base_error_pct": format_value(result.base.error_pct),
-        "effects": ",".join(result.final.effects) or "none",
-        "final_tau1_s": format_value(result.final.tau1),
-        "final_tau2_s": format_value(result.final.tau2),
-        "final_error_pct": format_value(result.final.error_pct),
-        "top_suspect": top.effect if top else "none",
-        "top_suspect_error_pct": format_value(top.error_pct if top else math.nan),
-        "diagnosis_duration_s": format_value(time.perf_counter() - started),
+        **diagnosis_values(found, effects),
     }
+    del values["diagnosis_age_s"]  # it is the last pairs' diagnosis, at the end of the record
     return result.verdict, values, Level.OK if result.verdict == "none" else Level.WARN
 
 
