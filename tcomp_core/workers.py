@@ -194,11 +194,19 @@ class ProcessRunner:
         if pool is None:
             return
         # A running job is disposable: end the worker now instead of letting the caller's exit
-        # wait seconds for it (ProcessPoolExecutor has no public way before Python 3.14). The
-        # pool's manager thread then stops at once; waiting for it keeps it from racing the
-        # interpreter's exit hook (an ignored OSError on Python 3.11).
-        for worker in list((pool._processes or {}).values()):
+        # wait seconds for it (ProcessPoolExecutor has no public way before Python 3.14).
+        workers = list((pool._processes or {}).values())
+        for worker in workers:
             worker.terminate()
+        for worker in workers:
+            worker.join(timeout=5.0)
+        # A worker killed while it wrote a result leaves half a message in the result pipe, and
+        # the pool's manager thread blocked reading the rest. Closing this process's copy of the
+        # pipe's write end (the dead worker held the only other) ends that read with EOF, so
+        # the manager thread sees a broken pool and stops; waiting for it keeps it from racing
+        # the interpreter's exit hook (an ignored OSError on Python 3.11).
+        with contextlib.suppress(AttributeError, OSError):
+            pool._result_queue._writer.close()  # type: ignore[attr-defined]
         pool.shutdown(wait=True, cancel_futures=True)
 
     def _drop_pool(self) -> None:
