@@ -189,3 +189,20 @@ def test_an_output_model_is_taken_only_when_it_passes_and_dropped_when_stale():
     assert values["output_model"] == "first-order" and values["output_model_note"].startswith(
         "stale"
     )
+
+
+def test_recent_pairs_give_the_newest_and_those_since_a_stamp_from_their_newest_batches():
+    from tcomp_core.online.extended import RecentPairs
+
+    recent = RecentPairs(100)
+    stamps = np.arange(250, dtype=np.int64) * 10
+    for start in range(0, 250, 7):  # batches of 7, the oldest dropped beyond 100
+        part = slice(start, start + 7)
+        recent.add(stamps[part], stamps[part] * 0.5)
+    kept = recent.columns()[0]
+    assert kept.size == 100 and kept[-1] == stamps[-1]
+    np.testing.assert_array_equal(recent.tail(13)[0], stamps[-13:])
+    np.testing.assert_array_equal(recent.tail(1000)[0], kept)
+    np.testing.assert_array_equal(recent.since(2005)[0], stamps[stamps >= 2005])
+    np.testing.assert_array_equal(recent.since(2000)[1], stamps[stamps >= 2000] * 0.5)
+    np.testing.assert_array_equal(recent.since(0)[0], kept)

@@ -416,21 +416,35 @@ class OnlineCompensator:
         return True
 
     def _prime(self) -> _Pairs:
-        """The newest gap-free pairs already reconstructed (empty before any was)."""
+        """The newest gap-free pairs already reconstructed, at most PRIME_PAIRS (or none)."""
         until = self._reconstructed_until
         empty = (np.empty(0, np.int64), np.empty(0), np.empty(0))
-        if until is None or self.recent.size == 0:
+        if until is None or self._period is None or self.recent.size == 0:
             return empty
-        stamps, tc1, tc2 = self.recent.newest(self._config.gap_factor)[:3]
+        stamps, tc1, tc2 = self.recent.tail(PRIME_PAIRS + self._backlog_rows + 1)[:3]
         keep = stamps <= until
-        return stamps[keep][-PRIME_PAIRS:], tc1[keep][-PRIME_PAIRS:], tc2[keep][-PRIME_PAIRS:]
+        stamps, tc1, tc2 = stamps[keep], tc1[keep], tc2[keep]
+        gaps = np.flatnonzero(np.diff(stamps) * 1e-9 > self._config.gap_factor * self._period)
+        start = int(gaps[-1]) + 1 if gaps.size else 0
+        return (
+            stamps[start:][-PRIME_PAIRS:],
+            tc1[start:][-PRIME_PAIRS:],
+            tc2[start:][-PRIME_PAIRS:],
+        )
 
-    def _catch_up_pairs(self) -> _Pairs:
-        """The pairs already reconstructed, newest :data:`RECENT_S` of them (oldest first)."""
+    def _catch_up_pairs(self, since_ns: int | None) -> _Pairs:
+        """The pairs already reconstructed from ``since_ns`` on (the newest PRIME_PAIRS: None).
+
+        A build that was not primed (asked for before any pair was reconstructed) warms up
+        on the newest pairs instead.
+        """
         until = self._reconstructed_until
         if until is None or self.recent.size == 0:
             return (np.empty(0, np.int64), np.empty(0), np.empty(0))
-        stamps, tc1, tc2 = self.recent.columns()[:3]
+        if since_ns is None:
+            stamps, tc1, tc2 = self.recent.tail(PRIME_PAIRS + self._backlog_rows + 1)[:3]
+        else:
+            stamps, tc1, tc2 = self.recent.since(since_ns)[:3]
         keep = stamps <= until
         return stamps[keep], tc1[keep], tc2[keep]
 
@@ -442,7 +456,7 @@ class OnlineCompensator:
         if error or build is None:
             reconstructor.note = f"filter build failed: {error}"
             return
-        reconstructor.use(build, self._catch_up_pairs())
+        reconstructor.use(build, self._catch_up_pairs(build.primed_until_ns))
 
     def _take_output(self, output: ExtendedOutput | None, error: str) -> GasBatch:
         building, self._building_output = self._building_output, None
@@ -456,7 +470,8 @@ class OnlineCompensator:
             output.since_ns = previous.since_ns  # a refit of the same physics
         primed_until = output.published_until_ns  # the last pair it was run through
         output.published_until_ns = self._published_until
-        stamps, tc1, tc2 = self._catch_up_pairs()
+        primed = primed_until if primed_until != np.iinfo(np.int64).min else None
+        stamps, tc1, tc2 = self._catch_up_pairs(primed)
         start = int(np.searchsorted(stamps, primed_until))
         if start < stamps.size and stamps[start] != primed_until:
             output.restart()  # the pairs it was primed on are gone: it starts afresh

@@ -285,6 +285,36 @@ class RecentPairs:
         """The kept pairs, oldest first: stamps then the values, shape (n,) each."""
         return [np.concatenate(c)[-self.capacity :] for c in zip(*self.parts, strict=True)]
 
+    def since(self, stamp_ns: int) -> list[NDArray]:
+        """The kept pairs stamped at or after ``stamp_ns``, oldest first (columns as above).
+
+        Only the newest batches are joined: the cost follows the pairs asked for, not the
+        capacity.
+        """
+        taken: list[tuple[NDArray, ...]] = []
+        for part in reversed(self.parts):
+            taken.append(part)
+            if part[0][0] <= stamp_ns:
+                break
+        if not taken:
+            return [np.empty(0, np.int64)]
+        columns = [np.concatenate(c) for c in zip(*reversed(taken), strict=True)]
+        start = int(np.searchsorted(columns[0], stamp_ns))
+        return [column[start:] for column in columns]
+
+    def tail(self, count: int) -> list[NDArray]:
+        """The newest ``count`` pairs (fewer when fewer are kept), oldest first."""
+        taken: list[tuple[NDArray, ...]] = []
+        held = 0
+        for part in reversed(self.parts):
+            taken.append(part)
+            held += part[0].size
+            if held >= count:
+                break
+        if not taken:
+            return [np.empty(0, np.int64)]
+        return [np.concatenate(c)[-count:] for c in zip(*reversed(taken), strict=True)]
+
     def longest(self, gap_factor: float) -> tuple[NDArray, ...]:
         """The longest gap-free stretch (:func:`longest_stretch`)."""
         return longest_stretch(self.columns(), gap_factor)
