@@ -298,12 +298,13 @@ class RecentPairs:
                 break
         if not taken:
             return [np.empty(0, np.int64)]
-        columns = [np.concatenate(c) for c in zip(*reversed(taken), strict=True)]
+        columns = [np.concatenate(c)[-self.capacity :] for c in zip(*reversed(taken), strict=True)]
         start = int(np.searchsorted(columns[0], stamp_ns))
         return [column[start:] for column in columns]
 
     def tail(self, count: int) -> list[NDArray]:
         """The newest ``count`` pairs (fewer when fewer are kept), oldest first."""
+        count = min(count, self.capacity)
         taken: list[tuple[NDArray, ...]] = []
         held = 0
         for part in reversed(self.parts):
