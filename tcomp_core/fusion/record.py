@@ -127,13 +127,22 @@ def fuse(
     fits = fit_signal_models(
         first, second, dt, tau1, tau2, sigma1=sigma1, sigma2=sigma2, model=model
     )
-    failures = dict(fits.failures)
+    failures, unstable = dict(fits.failures), []
     for fitted, _ in fits.ranked:
         gas, std, log_likelihood = _run(fitted, first, second, causal)
         if gas is None:
             failures[fitted.kind] = "numerically unstable on this record (non-finite output)"
+            unstable.append(fitted.kind)
             continue
         note = SignalModelFits(fits.ranked, failures, fits.requested).note(fitted.kind)
+        if unstable and fits.requested == "auto":  # the likelier ones were fitted but failed
+            note = "; ".join(
+                [
+                    *filter(None, [note]),
+                    f"{', '.join(unstable)} numerically unstable on this "
+                    f"record (non-finite output): {fitted.kind} used instead",
+                ]
+            )
         return FusionResult(
             time=np.arange(first.size, dtype=np.float64) * fitted.dt,
             gas=gas,

@@ -16,6 +16,7 @@ from scipy import signal
 
 __all__ = [
     "MAX_EIGENVECTOR_CONDITION",
+    "MODAL_CONDITION",
     "ModalRecursion",
     "apply_matrix",
     "decay_horizon",
@@ -25,6 +26,9 @@ __all__ = [
 
 #: Batches up to this many samples run through :class:`ModalRecursion` as one product.
 SHORT_BATCH = 64
+#: Largest condition number of the eigenvectors for which a recursion runs in the eigenbasis
+#: (its rounding grows with it; beyond, the Schur basis, unitary, is used).
+MODAL_CONDITION = 1e6
 #: Largest condition number of the eigenvectors for which matrix powers come from them.
 MAX_EIGENVECTOR_CONDITION = 1e8
 
@@ -32,18 +36,14 @@ MAX_EIGENVECTOR_CONDITION = 1e8
 def apply_matrix(matrix: NDArray, array: NDArray) -> NDArray:
     """``matrix`` (a, b) applied along the first axis of ``array`` (b, ...) → (a, ...).
 
-    Written as elementwise sums (einsum for real data) rather than a matrix product: BLAS
-    spreads products with long arrays over threads, which on a loaded machine made these
-    small-by-long products ten times slower.
+    A matrix product (BLAS), with the trailing axes flattened into one. BLAS runs
+    single-threaded here (``tcomp_core`` sets ``OPENBLAS_NUM_THREADS``): threads spread these
+    small-by-long products over a loaded machine's cores and made them ten times slower, while
+    one thread does them several times faster than elementwise sums.
     """
-    if not (np.iscomplexobj(matrix) or np.iscomplexobj(array)):
-        return np.einsum("ij,j...->i...", matrix, array)
-    real = np.einsum("ij,j...->i...", matrix.real, array.real)
-    imaginary = np.einsum("ij,j...->i...", matrix.imag, array.real)
-    if np.iscomplexobj(array):
-        real -= np.einsum("ij,j...->i...", matrix.imag, array.imag)
-        imaginary += np.einsum("ij,j...->i...", matrix.real, array.imag)
-    return real + 1j * imaginary
+    rows = matrix.shape[0]
+    flat = array.reshape(array.shape[0], -1)
+    return (matrix @ flat).reshape((rows, *array.shape[1:]))
 
 
 def linear_recursion(
@@ -51,9 +51,12 @@ def linear_recursion(
 ) -> NDArray[np.float64]:
     """Run ``x_j = A x_{j-1} + u_j`` for j = 1..M without a Python loop over samples.
 
-    In the Schur basis ``A = U T Uᴴ`` (T upper triangular, U unitary) each component is a
-    first-order recursion driven by the inputs and by the components after it, solved by
-    :func:`scipy.signal.lfilter` from the last component back to the first.
+    In the eigenbasis of A (``A = V Λ V⁻¹``, when V is well conditioned) every mode is a
+    first-order recursion of its own: one :func:`scipy.signal.lfilter` call per mode, one of
+    each complex-conjugate pair. Otherwise, in the Schur basis ``A = U T Uᴴ`` (T upper
+    triangular, U unitary), each component is a first-order recursion driven by the inputs and
+    by the components after it, solved from the last component back to the first (n² array
+    operations instead of n).
 
     Parameters
     ----------
@@ -69,6 +72,19 @@ def linear_recursion(
     ndarray, shape (n, M, m)
         x_1..x_M.
     """
+    eigenvalues, vectors = np.linalg.eig(matrix)
+    if np.linalg.cond(vectors) <= MODAL_CONDITION:
+        kept = eigenvalues.imag >= 0.0  # real ones, and one of each conjugate pair
+        weight = np.where(eigenvalues.imag[kept] > 0.0, 2.0, 1.0)
+        inverse = np.linalg.inv(vectors)[kept]
+        drive = apply_matrix(inverse, inputs)
+        start = inverse @ initial
+        modes = np.empty_like(drive)
+        for i, pole in enumerate(eigenvalues[kept]):
+            modes[i], _ = signal.lfilter(
+                [1.0], [1.0, -pole], drive[i], axis=0, zi=pole * start[i : i + 1]
+            )
+        return apply_matrix(vectors[:, kept] * weight, modes).real
     upper, basis = scipy.linalg.schur(matrix, output="complex")
     n = matrix.shape[0]
     drive = apply_matrix(basis.conj().T, inputs)
@@ -105,10 +121,9 @@ def matrix_powers(
     inverse = np.linalg.inv(vectors)
     steps = eigenvalues[:, None] ** np.arange(count)  # (n, count)
     left = vectors[rows]
-    powers = np.zeros((left.shape[0], count, n), dtype=np.complex128)
-    for i in range(n):
-        powers += left[:, i, None, None] * steps[i, None, :, None] * inverse[i, None, None, :]
-    return powers.real
+    # Σ_i left[r, i] λ_i^k inverse[i, j] as one product over i.
+    scaled = steps[:, :, None] * inverse[:, None, :]  # (n, count, n)
+    return apply_matrix(left, scaled).real
 
 
 def decay_horizon(matrix: NDArray[np.float64], count: int) -> int:
@@ -145,7 +160,7 @@ class ModalRecursion:
     ) -> None:
         self._a, self._b, self._c, self._d = a, b, c, d
         eigenvalues, vectors = np.linalg.eig(a)
-        self._modal = bool(np.linalg.cond(vectors) <= MAX_EIGENVECTOR_CONDITION)
+        self._modal = bool(np.linalg.cond(vectors) <= MODAL_CONDITION)
         if not self._modal:
             return
         # A real matrix's eigenvalues come in exact conjugate pairs (LAPACK): keep the real

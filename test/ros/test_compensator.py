@@ -126,8 +126,12 @@ def test_kalman_reconstruction_and_tracking_by_name(harness):
         tracking_memory_s=0.5,
     )
     stamps = stamps_for(data.tc1.size, data.dt)
-    h.feed(stamps, data.tc1, data.tc2)
-    found = values(h.next_diagnostics(lambda s: values(s)["signal_model"] == "periodic"))
+    first = 1500  # 3 s: the window fills, the worker fits the periodic model (it lands ...
+    h.feed(stamps[:first], data.tc1[:first], data.tc2[:first])
+    found = values(
+        h.next_diagnostics(lambda s: values(s)["signal_model"] == "periodic", timeout=30.0)
+    )
+    h.feed(stamps[first:], data.tc1[first:], data.tc2[first:])  # ... before the last second)
     assert found["reconstruction"] == "kalman"
     assert found["signal_model_note"] == ""
     assert float(found["tracking_memory_s"]) == 0.5

@@ -96,7 +96,7 @@ def test_the_shipped_yaml_node_publishes_a_gas_near_the_offline_causal_filter():
     bag = ROOT / "bags" / "rig_sine_5khz"
     record = read_bag(bag)
     stamps = record.stamps_ns
-    held = 0.5 * (record.ref[:-1] + record.ref[1:])  # gas k is held over [t_k, t_k+1)
+    held = record.ref[:-1]  # simulated with the gas held over each interval (bags/README.md)
     gas, values = _replay_into_node(bag, rate=REPLAY_RATE, timeout_s=60.0)
     assert values["reconstruction"] == "kalman" and values["signal_model"]
     published = np.array(sorted(gas))
