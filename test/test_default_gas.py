@@ -12,7 +12,7 @@ user runs them, with no option:
 - both far below the paper's Eq. (7), which amplifies the noise by about sqrt(2) τ/τs.
 
 The errors are e_Tg against the true gas held over each interval (the simulator's gas at
-junction 1, averaged over the sample's two ends), the first second left out (the filters'
+junction 1, averaged over the sample's two ends), the first half second left out (the filters'
 start).
 """
 
@@ -39,7 +39,7 @@ def engine_record(rate_hz: int, seed: int = 3):
     rig = Rig(
         signal="engine_pulses",
         rate_hz=float(rate_hz),
-        duration_s=6.0,
+        duration_s=4.0,
         seed=seed,
         noise_c=(0.25, 0.25),
     )
@@ -61,7 +61,7 @@ def _csv_gas(path) -> np.ndarray:
 def test_default_paths_are_the_best_gas_for_their_context(tmp_path, rate_hz, capsys):
     record = engine_record(rate_hz)
     held = 0.5 * (record.gas[:-1] + record.gas[1:])
-    start = round(1.0 / record.dt)
+    start = round(0.5 / record.dt)
     data = write_csv(tmp_path / "pulses.csv", record.time, record.tc1, record.tc2)
     found = estimate(record.tc1, record.tc2, record.dt)
     smoother = fuse(record.tc1, record.tc2, record.dt, found.tau1, found.tau2)
