@@ -663,8 +663,11 @@ def analyse(result: dict, rate: float) -> dict:
     # latency over the steady part, leaving out the first second after the first output
     steady = index >= first + round(rate)
     # Pairs held at start-up (until the first τ and the first fitted filter): their successor
-    # was sent before the node published its first gas message; the rest are live.
-    live = successor >= received.min() if received.size else np.zeros(0, dtype=bool)
+    # was sent before the node published its first gas message. They go out over the next
+    # drains, ahead of the live pairs: steady state counts from a second after the first output.
+    first_out = received.min() if received.size else 0
+    held = successor < first_out
+    live = successor >= first_out + 1_000_000_000
     return {
         "gas_received": int(stamps.size),
         "duplicates": int(stamps.size - unique.size),
@@ -680,8 +683,8 @@ def analyse(result: dict, rate: float) -> dict:
         "lat_after_1s": percentiles(latency_ms[steady]),
         "lat_from_sent": percentiles(from_sent_ms),
         "lat_live": percentiles(latency_ms[live]),
-        "held": int((~live).sum()),
-        "held_max_ms": float(latency_ms[~live].max()) if (~live).any() else 0.0,
+        "held": int(held.sum()),
+        "held_max_ms": float(latency_ms[held].max()) if held.any() else 0.0,
         "late_20ms_pct": 100.0 * float(np.mean(latency_ms > GOAL_P99_MS))
         if latency_ms.size
         else math.nan,
@@ -706,7 +709,7 @@ def verdict(ok: bool) -> str:
 def print_table(args, baselines: list[dict], runs: list[tuple[str, dict, dict]]) -> None:
     rows: list[tuple[str, str, str]] = []
 
-    def row(name: str, value: str, goal: str = "") -> None:
+    def row(name: str, value: str = "", goal: str = "") -> None:
         rows.append((name, value, goal))
 
     row("== baseline: bare subscriber (EventsExecutor, spin_once), msgs/s both topics", "", "")
@@ -755,7 +758,7 @@ def print_table(args, baselines: list[dict], runs: list[tuple[str, dict, dict]])
         print(
             f"GOAL {name}: ratio >= {GOAL_RATIO_PCT} % (of all pairs sent): "
             f"{verdict(stats['ratio_all_pct'] >= GOAL_RATIO_PCT)}; latency p99 < {GOAL_P99_MS} "
-            f"ms after the start-up hold: {verdict(live < GOAL_P99_MS)}"
+            f"ms from 1 s after the first output: {verdict(live < GOAL_P99_MS)}"
         )
 
 
@@ -794,7 +797,7 @@ def _compensator_rows(row, args, name: str, comp: dict, stats: dict) -> None:
     )
     live = stats["lat_live"]
     row(
-        "latency after the start-up hold p50 / p99 / max ms",
+        "latency from 1 s after the first output p50 / p99 / max ms",
         f"{live['p50']:.2f} / {live['p99']:.2f} / {live['max']:.2f}",
         f"p99 < {GOAL_P99_MS} ms {verdict(live['p99'] < GOAL_P99_MS)}",
     )

@@ -49,6 +49,10 @@ class ExactSchedule:
         Log-determinant of the innovation covariance of each step.
     predicted_var : ndarray, shape (L + 1,)
         Variance of the predicted gas before each step (and after the last), °C².
+    drive : ndarray, shape (L, n, 2)
+        ``F K_k``: how each step's innovation moves the next prediction.
+    read : ndarray, shape (L, 2)
+        ``c K_k``: how it moves the filtered gas.
     """
 
     gains: NDArray[np.float64]
@@ -56,6 +60,8 @@ class ExactSchedule:
     inverse: NDArray[np.float64]
     log_det: NDArray[np.float64]
     predicted_var: NDArray[np.float64]
+    drive: NDArray[np.float64]
+    read: NDArray[np.float64]
 
     @classmethod
     def of(cls, space: StateSpace, target: NDArray[np.float64]) -> ExactSchedule:
@@ -83,12 +89,15 @@ class ExactSchedule:
             predicted_var.append(float(c @ predicted @ c))
             if np.abs(gain - target).max() <= tolerance:
                 break
+        gains_array = np.array(gains)
         return cls(
-            np.array(gains),
+            gains_array,
             np.array(stds),
             np.array(inverses),
             np.array(log_dets),
             np.array(predicted_var),
+            np.einsum("ij,kjl->kil", f, gains_array),
+            np.einsum("i,kil->kl", c, gains_array),
         )
 
     @property
@@ -245,22 +254,26 @@ class CausalFuser:
         """
         schedule = self.schedule
         count = min(y.shape[1], schedule.length - self._step)
-        f, c = self._space.transition, self._space.output
-        steps = range(self._step, self._step + count)
-        log_likelihood = 0.0
-        for done, step in enumerate(steps):
-            innovation = y[:, done] - state[-2:]
-            state = state + schedule.gains[step] @ innovation
-            gas[done] = c @ state
-            log_likelihood += (
-                schedule.log_det[step]
-                + innovation @ schedule.inverse[step] @ innovation
-                + LOG_2PI_SQUARED
-            )
-            state = f @ state
-        std[:count] = schedule.std[self._step : self._step + count]
+        f = self._space.transition
+        steps = slice(self._step, self._step + count)
+        drive = schedule.drive[steps]  # F K_k, (count, n, 2)
+        innovations = np.empty((count, 2))
+        predicted = np.empty((count, state.size))
+        # Only the state recursion is sequential: x_{k+1|k} = F x_{k|k-1} + F K_k e_k.
+        for k in range(count):
+            predicted[k] = state
+            innovations[k] = innovation = y[:, k] - state[-2:]
+            state = f @ state + drive[k] @ innovation
+        # The outputs of all the samples at once: c x_{k|k} = c x_{k|k-1} + (c K_k) e_k.
+        gas[:count] = predicted @ self._space.output + np.einsum(
+            "ki,ki->k", schedule.read[steps], innovations
+        )
+        quadratic = np.einsum("ki,kij,kj->", innovations, schedule.inverse[steps], innovations)
+        std[:count] = schedule.std[steps]
+        self.log_likelihood -= 0.5 * (
+            float(np.sum(schedule.log_det[steps])) + float(quadratic) + count * LOG_2PI_SQUARED
+        )
         self._step += count
-        self.log_likelihood -= 0.5 * log_likelihood
         return state, count
 
     def _steady_batch(

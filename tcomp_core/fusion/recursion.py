@@ -74,17 +74,34 @@ def linear_recursion(
     """
     eigenvalues, vectors = np.linalg.eig(matrix)
     if np.linalg.cond(vectors) <= MODAL_CONDITION:
-        kept = eigenvalues.imag >= 0.0  # real ones, and one of each conjugate pair
-        weight = np.where(eigenvalues.imag[kept] > 0.0, 2.0, 1.0)
-        inverse = np.linalg.inv(vectors)[kept]
-        drive = apply_matrix(inverse, inputs)
-        start = inverse @ initial
-        modes = np.empty_like(drive)
-        for i, pole in enumerate(eigenvalues[kept]):
-            modes[i], _ = signal.lfilter(
-                [1.0], [1.0, -pole], drive[i], axis=0, zi=pole * start[i : i + 1]
-            )
-        return apply_matrix(vectors[:, kept] * weight, modes).real
+        return _eigenbasis_recursion(eigenvalues, vectors, inputs, initial)
+    return _schur_recursion(matrix, inputs, initial)
+
+
+def _eigenbasis_recursion(
+    eigenvalues: NDArray[np.complex128],
+    vectors: NDArray[np.complex128],
+    inputs: NDArray[np.float64],
+    initial: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """:func:`linear_recursion` mode by mode; one mode of each complex-conjugate pair."""
+    kept = eigenvalues.imag >= 0.0  # real ones, and one of each conjugate pair
+    weight = np.where(eigenvalues.imag[kept] > 0.0, 2.0, 1.0)
+    inverse = np.linalg.inv(vectors)[kept]
+    drive = apply_matrix(inverse, inputs)
+    start = inverse @ initial
+    modes = np.empty_like(drive)
+    for i, pole in enumerate(eigenvalues[kept]):
+        modes[i], _ = signal.lfilter(
+            [1.0], [1.0, -pole], drive[i], axis=0, zi=pole * start[i : i + 1]
+        )
+    return np.asarray(apply_matrix(vectors[:, kept] * weight, modes).real)
+
+
+def _schur_recursion(
+    matrix: NDArray[np.float64], inputs: NDArray[np.float64], initial: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:func:`linear_recursion` in the Schur basis, from the last component back to the first."""
     upper, basis = scipy.linalg.schur(matrix, output="complex")
     n = matrix.shape[0]
     drive = apply_matrix(basis.conj().T, inputs)
@@ -102,7 +119,7 @@ def linear_recursion(
         )
         delayed[i, 0] = start[i]
         delayed[i, 1:] = states[i, :-1]
-    return apply_matrix(basis, states).real
+    return np.asarray(apply_matrix(basis, states).real)
 
 
 def matrix_powers(

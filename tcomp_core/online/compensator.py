@@ -397,6 +397,9 @@ class OnlineCompensator:
             self._wanted_filter = ""
             return False
         assert self._tau is not None and self._period is not None
+        if reconstructor.model is not None and self._reconstructed_until is None:
+            return False  # the pairs held for the filter that just landed go out first: the
+            # next build is primed on them (else it would warm up on the stream, not the worker)
         refit = self._wanted_filter == "refit" or reconstructor.model is None
         self._wanted_filter = ""
         first = reconstructor.model is None or reconstructor.interim

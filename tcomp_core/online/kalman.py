@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..fusion import CausalFuser, FusionModel, SignalModelFits, fit_signal_models
+from ..fusion.causal import MAX_EXACT_SAMPLES
 from ..fusion.fitting import AUTO_MODELS, FIT_FAILURES, QUICK_MODELS
 from .config import FUSION_FIT_SAMPLES, FUSION_REFIT_CHANGE, OnlineConfig
 from .estimation import gap_free_runs
@@ -52,8 +53,10 @@ __all__ = [
 #: Relative move of τ1 or τ2 since the filter was built that makes the next accepted estimate
 #: retune it (smaller moves change the gas by less than the estimate's own scatter).
 FUSION_RETUNE_CHANGE = 0.01
-#: Newest pairs a new filter runs through before it takes over (its state and gain settle).
-PRIME_PAIRS = 2000
+#: Newest pairs a new filter runs through before it takes over, in the job: enough for its
+#: time-varying start to end (:data:`~tcomp_core.fusion.causal.MAX_EXACT_SAMPLES`), so the
+#: catching up on the stream is the steady-state recursion alone.
+PRIME_PAIRS = MAX_EXACT_SAMPLES
 #: Pairs the interim random-walk model is fitted on (a few tens of milliseconds).
 INTERIM_SAMPLES = 512
 
