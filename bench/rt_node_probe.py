@@ -34,6 +34,9 @@ class TimedCompensatorNode(CompensatorNode):
     """CompensatorNode whose timer callbacks record their durations."""
 
     def __init__(self, **kwargs) -> None:
+        self.started = time.perf_counter()
+        #: per timed call: (name, seconds since start, duration s), for the slowest calls
+        self.calls: list[tuple[str, float, float]] = []
         self.timings: dict[str, list[float]] = {
             "_process": [],
             "_update_estimate": [],
@@ -53,18 +56,25 @@ class TimedCompensatorNode(CompensatorNode):
         super()._process()
         elapsed = time.perf_counter() - start
         self.timings["_process"].append(elapsed)
+        self.calls.append(("_process", start - self.started, elapsed))
         self.trace.append((start, *inbox, elapsed))
         self.batch_pairs.append(self.engine.published - before)
 
-    def _update_estimate(self) -> None:
+    def update_estimate(self) -> None:
         start = time.perf_counter()
-        super()._update_estimate()
+        super().update_estimate()
         self.timings["_update_estimate"].append(time.perf_counter() - start)
+        self.calls.append(
+            ("_update_estimate", start - self.started, self.timings["_update_estimate"][-1])
+        )
 
     def publish_diagnostics(self) -> None:
         start = time.perf_counter()
         super().publish_diagnostics()
         self.timings["publish_diagnostics"].append(time.perf_counter() - start)
+        self.calls.append(
+            ("publish_diagnostics", start - self.started, self.timings["publish_diagnostics"][-1])
+        )
 
     def summary(self) -> dict:
         result: dict[str, object] = {}
@@ -81,6 +91,8 @@ class TimedCompensatorNode(CompensatorNode):
         result["batch_pairs"] = summarise(pairs)
         result["process_us_per_pair"] = summarise(per_pair_us)
         result["process_interval_ms"] = summarise(np.diff(self.process_starts) * 1e3)
+        slowest = sorted(self.calls, key=lambda call: -call[2])[:8]
+        result["slowest_ms_at_s"] = [(n, round(at, 2), round(d * 1e3, 1)) for n, at, d in slowest]
         result["received"] = list(self.received)
         result["published"] = self.engine.published
         return result
