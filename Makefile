@@ -37,8 +37,8 @@ test-fast: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m tcomp_core.demo --out $(OUT)/demo
 	@echo
-	@echo "== ROS 2: replay bags/rig_sine_5khz (5 kHz) into the compensator node =="
-	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(PY) -m tcomp_ros.demo --bag bags/rig_sine_5khz \
+	@echo "== ROS 2: replay bags/rig_sine_5khz (5 kHz) into the compensator node, half speed =="
+	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(PY) -m tcomp_ros.demo --bag bags/rig_sine_5khz --rate 0.5 \
 		--ros-args --params-file config/compensator.yaml
 	@echo
 	@echo "== ROS 2: replay bags/conduction_500hz (hidden conduction) with compensate_effects =="

@@ -74,6 +74,10 @@ def main(argv: list[str] | None = None) -> int:
     gas: dict[int, float] = {}
     truth: dict[int, float] = {}
 
+    def building(values: dict[str, str]) -> str:
+        pending = values.get("output_model_pending", "")
+        return f" (building {pending})" if pending else ""
+
     def show(array: DiagnosticArray) -> None:
         status = array.status[0]
         values = {item.key: item.value for item in status.values}
@@ -82,7 +86,8 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"[{LEVELS[status.level[0]]:>5}] tau1 = {values['tau1_s']:>9} s  "
             f"tau2 = {values['tau2_s']:>9} s  matched {values['matched']:>6}  "
-            f"fit {values['fit_error_pct']:>7} %  gas: {values['output_model']}  "
+            f"fit {values['fit_error_pct']:>7} %  gas: {values['output_model']}"
+            f"{building(values)}  "
             f"{status.message}",
             flush=True,
         )
@@ -127,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     if last:
         print(
             f"final: tau1 = {last['tau1_s']} s, tau2 = {last['tau2_s']} s, "
-            f"matched {last['matched']} pairs, published {last['published']} gas samples"
+            f"matched {last['matched']} pairs, published {last['published']} gas samples "
+            f"({len(gas)} received here)"
         )
         since = last.get("output_model_since", "")
         _compare(gas, truth, int(since) if since else None, last.get("output_model", ""))
@@ -140,12 +146,13 @@ def _compare(
     """Print the published gas's error against the reference, before and after a switch."""
     import numpy as np
 
-    stamps = sorted(stamp for stamp in gas if stamp in truth)
+    # Element k is the gas held over [t_k, t_k+1): compare it with the mean of ref at both ends
+    # (the reference's own next sample, whether or not its gas message was received).
+    following = dict(itertools.pairwise(sorted(truth)))
+    stamps = sorted(stamp for stamp in gas if stamp in following)
     if len(stamps) < 100:
         return
-    # Element k is the gas held over [t_k, t_k+1): compare it with the mean of ref at both ends.
-    following = dict(itertools.pairwise(stamps))
-    pairs = [(s, gas[s], 0.5 * (truth[s] + truth[following[s]])) for s in stamps[:-1]]
+    pairs = [(s, gas[s], 0.5 * (truth[s] + truth[following[s]])) for s in stamps]
     parts = {"first order": [p for p in pairs if since is None or p[0] < since]}
     if since is not None:
         parts[model] = [p for p in pairs if p[0] >= since]

@@ -191,6 +191,73 @@ def test_an_output_model_is_taken_only_when_it_passes_and_dropped_when_stale():
     )
 
 
+class _SlowDiagnosis:
+    """A diagnosis runner whose job lands, with a given result, when :meth:`finish` is called."""
+
+    def __init__(self, result: dict) -> None:
+        self.result, self.running, self.outcome = result, False, None
+
+    @property
+    def busy(self) -> bool:
+        return self.running
+
+    def submit(self, function, *args) -> bool:
+        if self.running:
+            return False
+        self.running = True
+        return True
+
+    def finish(self) -> None:
+        from tcomp_core.workers import Outcome
+
+        self.running, self.outcome = False, Outcome(dict(self.result))
+
+    def poll(self):
+        outcome, self.outcome = self.outcome, None
+        return outcome
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_fit_that_took_long_to_land_is_stale_only_that_much_later():
+    from tcomp_core.online import Engine
+    from tcomp_core.online.diagnosis import OUTPUT_STALE_PERIODS
+
+    sim, stamps = _record()
+    good = model_with(*STREAM_MODELS["delay"], n=2000, error_pct=1.0, base_error_pct=10.0)
+    result = {
+        "effects": ["delay"],
+        "base_error_pct": 10.0,
+        "error_pct": 1.0,
+        "tau1": 0.0238,
+        "tau2": 0.1168,
+        "at_bound": [],
+        "top_suspect": "delay",
+        "top_suspect_error_pct": 1.0,
+        "samples": 2000,
+        "seconds": 6.0,
+        "output_model": good,
+    }
+    runner = _SlowDiagnosis(result)
+    engine = Engine(
+        OnlineConfig(compensate_effects=True, diagnosis_period_s=1.0), diagnosis_runner=runner
+    )
+    engine.add_samples(0, stamps[:2000], sim.tc1[:2000], 0.0)
+    engine.add_samples(1, stamps[:2000], sim.tc2[:2000], 0.0)
+    engine.reconstruct()
+    compensator, policy = engine.compensator, engine.diagnosis
+    assert policy.start(5.0, compensator)  # the data are taken at 5 s ...
+    runner.finish()
+    policy.poll(11.0, compensator)  # ... and the fit lands 6 s later
+    assert compensator.output_model is good
+    limit = 5.0 + OUTPUT_STALE_PERIODS * 1.0 + 6.0
+    engine.periodic_diagnosis(limit - 0.1)
+    assert compensator.output_model is good  # a period-sized age would have dropped it at 8 s
+    engine.periodic_diagnosis(limit + 0.1)
+    assert compensator.output_model is None and compensator.output_note.startswith("stale")
+
+
 def test_recent_pairs_give_the_newest_and_those_since_a_stamp_from_their_newest_batches():
     from tcomp_core.online.extended import RecentPairs
 

@@ -14,7 +14,8 @@ The rules the compensator node follows (and ``tcomp process``, which drives the 
 - **What is taken** (:func:`judge_output`): a fit whose model has an effect a stream can
   apply, no parameter on a physical bound and a held-out error at least :data:`MIN_ERROR_FALL`
   below first order's becomes the published model; a later fit that fails those checks, a fit
-  older than :data:`OUTPUT_STALE_PERIODS` diagnosis periods (never with a period of 0), or
+  older than :data:`OUTPUT_STALE_PERIODS` diagnosis periods plus the time the last job took
+  (never with a period of 0: a fit on data taken at t lands only when the job ends), or
   ``compensate_effects`` set false return to first order.
 - **What is said**: :meth:`DiagnosisPolicy.values`, one vocabulary for the node's
   ``/diagnostics`` and ``tcomp process`` (:func:`diagnosis_values` for a result alone).
@@ -53,7 +54,8 @@ MIN_DIAGNOSIS_SAMPLES = 1000
 MAX_DIAGNOSIS_S = 60.0
 #: A fit compensates the published gas when it lowers the held-out error by this share ...
 MIN_ERROR_FALL = 0.2
-#: ... and until it is this many diagnosis periods old without a newer accepted fit.
+#: ... and until it is this many diagnosis periods (plus the time the last job took, from its
+#: submission to its result) old without a newer accepted fit.
 OUTPUT_STALE_PERIODS = 3.0
 
 
@@ -139,6 +141,7 @@ class DiagnosisPolicy:
         self._submitted_at = math.nan
         self._submitted: tuple[tuple[str, ...] | None, tuple | None] = ((), None)
         self._output_fitted_at = math.nan  # when the data of the output model were taken
+        self._job_lag = 0.0  # the last job's time from submission to result, caller's clock
         #: A job is to start as soon as the window is long enough and the worker free.
         self.wanted = self.effects_set
         #: Jobs started so far.
@@ -192,12 +195,12 @@ class DiagnosisPolicy:
         if self.wanted:
             self.start(now, compensator)
         else:
-            self._collect(compensator)
+            self._collect(now, compensator)
         self._check_output_age(now, compensator)
 
     def start(self, now: float, compensator: OnlineCompensator) -> bool:
         """Diagnose now, unless a job runs or the stretch is too short; whether one started."""
-        self._collect(compensator)  # a finished job's result belongs to the previous submit
+        self._collect(now, compensator)  # a finished job's result belongs to the previous submit
         period = compensator.period_s
         record = self._output_record(compensator) if self.compensating else None
         segment = np.column_stack(record[1:]) if record is not None else self._segment(compensator)
@@ -223,7 +226,7 @@ class DiagnosisPolicy:
             self._submitted_at = now
             self._submitted = (self._effects, record)
             self.wanted = False
-            self._collect(compensator)  # an inline runner has finished already
+            self._collect(now, compensator)  # an inline runner has finished already
         return started
 
     # -- on what -------------------------------------------------------------------------------
@@ -297,12 +300,14 @@ class DiagnosisPolicy:
         if compensator.output_model is None or period <= 0.0:
             return
         age = now - self._output_fitted_at
-        if age > OUTPUT_STALE_PERIODS * period:
+        if age > OUTPUT_STALE_PERIODS * period + self._job_lag:
             self._set_output(compensator, None, f"stale: the last accepted fit is {age:.3g} s old")
 
-    def _collect(self, compensator: OnlineCompensator) -> None:
-        """Take a finished job's result, if any."""
+    def _collect(self, now: float, compensator: OnlineCompensator) -> None:
+        """Take a finished job's result, if any (``now``: the caller's clock, seconds)."""
         result = self._diagnoser.poll()
+        if result is not None:
+            self._job_lag = max(0.0, now - self._submitted_at)
         if result is not None and "error" in result:
             self._error = str(result["error"])
             self.log.append(("warning", f"diagnosis failed: {self._error}"))
