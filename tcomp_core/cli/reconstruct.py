@@ -35,11 +35,12 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     """Add ``reconstruct`` to the sub-commands of ``tcomp``; returns its parser."""
     parser = verbs.add_parser(
         "reconstruct",
-        help="reconstruct the gas temperature (Eq. 7 or a Kalman smoother)",
+        help="reconstruct the gas temperature (Kalman smoother by default, or Eq. 7)",
         description="Estimate tau1, tau2 (or take them as given) and reconstruct the gas "
-        "temperature from both thermocouples: through the difference equation (Eq. 7), or "
-        "by a Kalman smoother (or causal filter) of both sensors whose gas temperature model "
-        "and settings are fitted to the data by maximum likelihood.",
+        "temperature from both thermocouples: by default by a Kalman smoother of both sensors "
+        "whose gas temperature model and settings are fitted to the data by maximum likelihood "
+        "(or its causal filter); with --reconstruction difference through the paper's "
+        "difference equation (Eq. 7).",
     )
     add_data_arguments(parser)
     add_estimator_arguments(parser)
