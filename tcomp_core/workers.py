@@ -10,8 +10,10 @@ one job at a time and lets the caller collect its outcome without blocking:
     outcome = runner.poll()             # None until the job is done, then its outcome once
 
 :class:`ProcessRunner` runs the job in one spawned worker process at a lower priority (the
-node); :class:`InlineRunner` runs it at once in the caller (``tcomp process``, which replays a
-record in stamp time, so a job's result lands at the same stamp on every run).
+node's model fits); :class:`ThreadRunner` in one thread of the caller's process (the node's τ
+re-estimation: milliseconds of numpy and scipy that need the window's copy, not a process);
+:class:`InlineRunner` runs it at once in the caller (``tcomp process``, which replays a record
+in stamp time, so a job's result lands at the same stamp on every run).
 
 The worker is started with ``spawn``, not ``fork``: a ROS node's process runs DDS threads, and
 a forked child would inherit their locks in whatever state they were. As with any spawned
@@ -26,12 +28,19 @@ import contextlib
 import multiprocessing
 import os
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-__all__ = ["WORKER_NICENESS", "InlineRunner", "JobRunner", "Outcome", "ProcessRunner"]
+__all__ = [
+    "WORKER_NICENESS",
+    "InlineRunner",
+    "JobRunner",
+    "Outcome",
+    "ProcessRunner",
+    "ThreadRunner",
+]
 
 #: The worker runs this much nicer than its caller: on a small machine the real-time work of
 #: the caller comes first and the jobs take the spare CPU.
@@ -101,6 +110,52 @@ class InlineRunner:
     def close(self) -> None:
         """Refuse later jobs."""
         self._closed = True
+
+
+class ThreadRunner:
+    """One job at a time in one thread of the caller's process.
+
+    For jobs of milliseconds whose inputs are large to pickle and whose work is mostly numpy
+    and scipy: the caller's own thread (a node's executor) takes the interpreter back at least
+    every :func:`sys.getswitchinterval` (5 ms) and whenever the job is inside a routine that
+    releases it, instead of waiting for the whole job. The job must not share mutable state
+    with the caller (give it copies).
+    """
+
+    def __init__(self, name: str = "tcomp-job") -> None:
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name)
+        self._future: Future | None = None
+        self._closed = False
+
+    @property
+    def busy(self) -> bool:
+        """Whether a job is running (or finished and not yet polled)."""
+        return self._future is not None and not self._future.done()
+
+    def submit(self, function: Callable[..., Any], /, *args: Any) -> bool:
+        """Start ``function(*args)`` on the thread unless a job runs; whether it started."""
+        if self._closed:
+            raise RuntimeError("the runner is closed")
+        if self._future is not None and not self._future.done():
+            return False
+        self._future = self._pool.submit(function, *args)
+        return True
+
+    def poll(self) -> Outcome | None:
+        """The outcome of a job that finished since the last call, else None."""
+        future = self._future
+        if future is None or not future.done():
+            return None
+        self._future = None
+        error = future.exception()
+        if error is not None:
+            return Outcome(error=f"{type(error).__name__}: {error}")
+        return Outcome(future.result())
+
+    def close(self) -> None:
+        """Refuse later jobs; a running one finishes on its own (its outcome is dropped)."""
+        self._closed = True
+        self._pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _lower_priority() -> None:

@@ -12,7 +12,10 @@ timers; every time the engine sees is the node's clock (``now``), so ``use_sim_t
 The published gas is the causal Kalman filter of both sensors by default
 (``reconstruction: kalman``): its signal model is fitted in a worker process
 (:class:`~tcomp_core.workers.ProcessRunner`) and handed over warm, so the stream never waits for
-a fit. The background diagnosis (every ``diagnosis_period_s`` while the first-order fit is poor
+a fit; τ is re-estimated on a thread (:class:`~tcomp_core.workers.ThreadRunner`: the window's
+copy, milliseconds of numpy and scipy that the executor interrupts every few milliseconds to
+drain the inputs) and taken at the next drain after it lands. The background diagnosis (every
+``diagnosis_period_s`` while the first-order fit is poor
 or ``effects`` is set) and the output models it yields with ``compensate_effects`` follow the
 engine's rules (:mod:`tcomp_core.online.diagnosis`), as ``tcomp process`` does; the node only
 ticks them on its timers.
@@ -56,7 +59,7 @@ from tcomp_core.io import Encoder, decode_message
 from tcomp_core.online import DIAGNOSTICS_PERIOD_S, Engine, GasBatch, Health, OnlineConfig
 from tcomp_core.online.health import format_value as _fmt
 from tcomp_core.parameters import PARAMETERS, ParameterSpec
-from tcomp_core.workers import InlineRunner, ProcessRunner
+from tcomp_core.workers import InlineRunner, ProcessRunner, ThreadRunner
 
 from .spin import spin_until_shutdown
 
@@ -110,10 +113,10 @@ class CompensatorNode(Node):
     node_name : str
         Node name ('compensator').
     background : bool
-        Fit the Kalman filter's signal model and run the diagnoses in worker processes (the
-        default, so the stream never waits); False runs them inline, at the stamp where they
-        are asked for, as ``tcomp process`` does (a replay that must match it sample for
-        sample).
+        Fit the Kalman filter's signal model and run the diagnoses in worker processes and the
+        τ re-estimation on a thread (the default, so the stream never waits); False runs them
+        inline, at the stamp where they are asked for, as ``tcomp process`` does (a replay
+        that must match it sample for sample).
     **kwargs
         Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ``namespace``).
     """
@@ -125,8 +128,12 @@ class CompensatorNode(Node):
         self._values = {spec.name: self.get_parameter(spec.name).value for spec in PARAMETERS}
         fits = ProcessRunner() if background else None
         diagnoses = ProcessRunner() if background else InlineRunner()
+        estimates = ThreadRunner("tcomp-estimate") if background else None
         self._engine = Engine(
-            OnlineConfig.from_parameters(self._values), runner=fits, diagnosis_runner=diagnoses
+            OnlineConfig.from_parameters(self._values),
+            runner=fits,
+            diagnosis_runner=diagnoses,
+            estimate_runner=estimates,
         )
         # The worker's imports take seconds: wait for them here, before any sample is taken,
         # so the first pairs are reconstructed with a fitted model instead of an interim one.

@@ -9,6 +9,8 @@ build that never lands gives way to the interim filter once the hold would outgr
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -157,3 +159,64 @@ def test_a_build_that_does_not_land_gives_way_to_the_interim_filter(sine):
     runner.finish()  # the fitted filter lands at last and replaces it
     stream.feed(2)
     assert compensator.signal_model_name == "periodic"
+
+
+def test_a_thread_runner_runs_one_job_at_a_time_and_reports_it_once():
+    import threading
+
+    from tcomp_core.workers import ThreadRunner
+
+    gate = threading.Event()
+    runner = ThreadRunner()
+    assert runner.submit(lambda: gate.wait(10.0) and 42)
+    assert runner.busy and not runner.submit(lambda: 0) and runner.poll() is None
+    gate.set()
+    deadline = time.monotonic() + 10.0
+    while runner.busy and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert runner.poll() == Outcome(42) and runner.poll() is None
+    assert runner.submit(lambda: 1 / 0)
+    while runner.busy:
+        time.sleep(0.01)
+    assert runner.poll().error.startswith("ZeroDivisionError")
+    runner.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        runner.submit(lambda: 0)
+
+
+def test_an_estimate_on_a_thread_lands_at_a_later_drain_with_the_inline_result(sine):
+    from tcomp_core.online import Engine
+    from tcomp_core.workers import ThreadRunner
+
+    def settle(engine):
+        deadline = time.monotonic() + 30.0
+        while engine.compensator._estimates.busy and time.monotonic() < deadline:
+            time.sleep(0.01)
+        engine.reconstruct()  # an empty drain takes what landed
+
+    stamps = _stamps(sine)
+    config = OnlineConfig(reconstruction="difference", window_s=1.0)
+    engines = {
+        "inline": Engine(config),
+        "thread": Engine(config, estimate_runner=ThreadRunner()),
+    }
+    found = {}
+    for name, engine in engines.items():
+        part = slice(0, 10_000)
+        engine.add_samples(0, stamps[part], sine.tc1[part], 2.0)
+        engine.add_samples(1, stamps[part], sine.tc2[part], 2.0)
+        engine.reconstruct()
+        if name == "thread":
+            settle(engine)  # the first attempts the pairs asked for
+        before = engine.compensator.last_status
+        status = engine.update_estimate(2.0)
+        if name == "thread":  # started, not landed: the status returned is the previous one
+            assert status is before
+            settle(engine)
+            status = engine.compensator.last_status
+            assert status is not before
+        assert status is not None and status.accepted
+        found[name] = (status.estimate.tau1, status.estimate.tau2)
+        assert engine.report(2.1).values["estimate_age_s"] != "inf"  # recorded when it landed
+        engine.close()
+    assert found["thread"] == pytest.approx(found["inline"], rel=1e-6)

@@ -95,6 +95,7 @@ class OnlineCompensator:
         config: OnlineConfig | None = None,
         initial_tau: tuple[float, float] | None = None,
         runner: JobRunner | None = None,
+        estimate_runner: JobRunner | None = None,
     ) -> None:
         self._config = config or OnlineConfig()
         self._tau = initial_tau
@@ -124,6 +125,13 @@ class OnlineCompensator:
         # Jobs: the one running ('filter' or 'output') and what waits for the runner.
         self._runner: JobRunner = runner if runner is not None else InlineRunner()
         self._running = ""
+        # Re-estimations of τ: inline by default; a thread keeps them off a node's executor.
+        self._estimates: JobRunner = (
+            estimate_runner if estimate_runner is not None else InlineRunner()
+        )
+        #: Statuses of the :meth:`update_estimate` jobs that landed since :meth:`take_landed`.
+        self._landed: list[EstimateStatus] = []
+        self._asked = False  # whether the running estimate was asked by update_estimate
         self._building_for: KalmanReconstructor | None = None  # of the filter build running
         self._wanted_filter = ""  # 'refit' or 'retune' waiting for the runner
         self._wanted_output: tuple[OutputModel, int, _Pairs] | None = None
@@ -264,8 +272,9 @@ class OnlineCompensator:
             self._wanted_output = (model, origin_ns, record)
 
     def close(self) -> None:
-        """Stop the job runner (a worker process: abandoning a running build)."""
+        """Stop the job runners (abandoning a running build or estimate)."""
         self._runner.close()
+        self._estimates.close()
 
     def longest_segment(self) -> NDArray[np.float64]:
         """The window's longest gap-free stretch, shape (n, 2): tc1, tc2 in degrees C."""
@@ -517,6 +526,7 @@ class OnlineCompensator:
             return GasBatch.empty()
         if not (np.isfinite(first).all() and np.isfinite(second).all()):
             raise DataError("non-finite temperature in a matched pair")
+        self._collect_estimate()
         fresh = self._restarted or not self.counters["pairs"]
         previous = stamps[0] - 1 if fresh else self._newest_stamp
         steps = np.diff(stamps, prepend=previous)
@@ -566,7 +576,7 @@ class OnlineCompensator:
         self._previous = (int(stamps[-1]), float(tc1[-1]), float(tc2[-1]))
         if self._tau is None and self._estimator.rows >= self._next_first_attempt:
             self._next_first_attempt = self._estimator.rows + FIRST_ESTIMATE_ROWS
-            self.update_estimate()
+            self.update_estimate(first_attempt=True)
         run: _Run = (stamps, tc1, tc2, steps_s, contiguous)
         if self._tau is None:
             self._hold(run)
@@ -580,6 +590,7 @@ class OnlineCompensator:
         sensors went quiet, a replay that ended) calls it so that a build lands anyway and the
         pairs held for it go out.
         """
+        self._collect_estimate()
         if self._pending_output is not None and self._period is not None:
             self._wanted_output, self._pending_output = self._pending_output, None
         if self._tau is None or self._estimator is None:
@@ -687,8 +698,15 @@ class OnlineCompensator:
         return self._postfilter(gas)
 
     # -- estimation ----------------------------------------------------------------------------
-    def update_estimate(self) -> EstimateStatus:
-        """Re-estimate τ1, τ2 from the window; accept the result when it is sound."""
+    def update_estimate(self, *, first_attempt: bool = False) -> EstimateStatus | None:
+        """Re-estimate τ1, τ2 from the window; accept the result when it is sound.
+
+        The estimate runs on the estimate runner (inline by default: its status is returned);
+        with a thread it lands later, at a following call or drain (:meth:`take_landed`), and
+        the newest landed status is returned (None before any). One runs at a time: a call
+        while one runs starts none. ``first_attempt``: asked by the pairs themselves before the
+        first τ (its status is not one of :meth:`take_landed`'s).
+        """
         if self._estimator is None:
             status = EstimateStatus(
                 accepted=False,
@@ -696,8 +714,42 @@ class OnlineCompensator:
                 reason=f"window holds 0 regression rows; {MIN_SAMPLES - 1} needed",
                 stamp_ns=self._newest_stamp,
             )
+            self._landed.append(status)
+            self.last_status = status
+            return status
+        self._collect_estimate()
+        if not self._estimates.busy:
+            self._asked = not first_attempt
+            self._estimates.submit(self._estimator.job(self._newest_stamp).run)
+            self._collect_estimate()  # an inline runner has finished already
+        return self.last_status
+
+    def take_landed(self) -> list[EstimateStatus]:
+        """The statuses of the estimates that landed since the last call, oldest first."""
+        landed, self._landed = self._landed, []
+        return landed
+
+    def _collect_estimate(self) -> None:
+        """Adopt an estimate that landed, if any."""
+        outcome = self._estimates.poll()
+        if outcome is None or self._estimator is None:
+            return
+        if outcome.error:
+            status = EstimateStatus(
+                accepted=False,
+                estimate=None,
+                reason=f"the estimate failed: {outcome.error}",
+                stamp_ns=self._newest_stamp,
+            )
         else:
-            status = self._estimator.estimate(self._newest_stamp)
+            status = outcome.value
+            self._estimator.adopt(status)
+        status = self._accept(status)
+        if self._asked:
+            self._landed.append(status)
+
+    def _accept(self, status: EstimateStatus) -> EstimateStatus:
+        """Take a landed status: a sound estimate becomes the published τ."""
         if status.accepted:
             status = self._trusted(status)
         if status.accepted and status.estimate is not None and self._period is not None:

@@ -52,6 +52,9 @@ class Engine:
     diagnosis_runner : JobRunner, optional
         Where the background diagnoses run (:class:`~.diagnosis.DiagnosisPolicy`; a worker
         process by default, spawned on the first job).
+    estimate_runner : JobRunner, optional
+        Where τ1, τ2 are re-estimated (inline by default, so an estimate lands at the stamp
+        it was asked at; the node passes a :class:`~tcomp_core.workers.ThreadRunner`).
     """
 
     def __init__(
@@ -60,8 +63,11 @@ class Engine:
         *,
         runner: JobRunner | None = None,
         diagnosis_runner: JobRunner | None = None,
+        estimate_runner: JobRunner | None = None,
     ) -> None:
-        self.compensator = OnlineCompensator(config, runner=runner)
+        self.compensator = OnlineCompensator(
+            config, runner=runner, estimate_runner=estimate_runner
+        )
         #: When the background diagnosis runs and what becomes of its output models.
         self.diagnosis = DiagnosisPolicy(config, diagnosis_runner)
         self.matcher = self._new_matcher(config)
@@ -226,11 +232,19 @@ class Engine:
         self.published += int(out.stamps_ns.size)
         return out
 
-    def update_estimate(self, now: float) -> EstimateStatus:
-        """Re-estimate τ1, τ2 at ``now`` (seconds)."""
+    def update_estimate(self, now: float) -> EstimateStatus | None:
+        """Re-estimate τ1, τ2 at ``now`` (seconds).
+
+        Returns the status of this estimate when it runs inline, else the newest that landed
+        (None before any); every landed status is recorded at ``now``.
+        """
         status = self.compensator.update_estimate()
-        self.monitor.estimated(status, now)
+        self._record_landed(now)
         return status
+
+    def _record_landed(self, now: float) -> None:
+        for status in self.compensator.take_landed():
+            self.monitor.estimated(status, now)
 
     def report(
         self,
@@ -251,6 +265,7 @@ class Engine:
         new_period : bool
             Start a new report period (rates and invalid samples count from ``now``).
         """
+        self._record_landed(now)
         health = self.monitor.report(
             now,
             engine=self.compensator,

@@ -12,7 +12,7 @@ ratio τ1/τ2 held to its long-term value (:class:`~tcomp_core.tracking.Forgetti
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,7 +28,7 @@ from ..validation import MIN_SAMPLES
 from ..window import BETA_METHODS, SlidingBetaWindow
 from .config import MIN_PREFILTER_SAMPLES, RATIO_MEMORY_FACTOR, EstimateStatus, OnlineConfig
 
-__all__ = ["WindowEstimator", "gap_free_runs"]
+__all__ = ["EstimationJob", "WindowEstimator", "gap_free_runs"]
 
 
 class WindowEstimator:
@@ -148,43 +148,127 @@ class WindowEstimator:
 
     # -- estimation ----------------------------------------------------------------------------
     def estimate(self, stamp_ns: int) -> EstimateStatus:
-        """Estimate τ1, τ2 on the window and grade the result.
+        """Estimate τ1, τ2 on the window and grade the result (:meth:`job`, run, adopted).
 
         Parameters
         ----------
         stamp_ns : int
             Stamp of the newest sample in the window, ns (carried into the status).
         """
+        status = self.job(stamp_ns).run()
+        self.adopt(status)
+        return status
+
+    def job(self, stamp_ns: int) -> EstimationJob:
+        """The estimate of the window as it is now, to run anywhere (a copy of what it needs).
+
+        The O(1) paths (the tracker, β methods on the window's scatter) are solved here; the
+        batch estimators (``ml-eiv``, γ, TDR, or any method with a pre-filter) run in
+        :meth:`EstimationJob.run`, which a caller may hand to a thread.
+        """
         window = self._window
+        config = self._config
         if window.rows + 1 < MIN_SAMPLES:
-            return EstimateStatus(
+            refused = EstimateStatus(
                 accepted=False,
                 estimate=None,
                 reason=f"window holds {window.rows} regression rows; {MIN_SAMPLES - 1} needed",
                 stamp_ns=stamp_ns,
             )
-        config = self._config
-        samples = window.samples_view  # read within this call only
+            return EstimationJob(config=config, stamp_ns=stamp_ns, refused=refused)
+        result: Estimate | str | None = None
         try:
-            from_window = False
             if self._tracker is not None and self._tracker.rows + 1 >= MIN_SAMPLES:
                 result = self._tracker.estimate()
             elif config.method in BETA_METHODS and config.prefilter_hz == 0.0:
                 result = window.estimate()
-                from_window = True
-            else:
-                result = self._estimate_segments(samples)
+        except (TcompError, ValueError) as exc:
+            result = str(exc)
+        from_window = result is not None and self._tracker is None
+        return EstimationJob(
+            config=config,
+            stamp_ns=stamp_ns,
+            samples=window.samples,  # a copy: the window moves on while the job runs
+            segment_starts=window.segment_starts,
+            scatter=window.scatter,  # a copy
+            rows=window.rows,
+            dt=window.dt,
+            warm=self._warm,
+            solved=result,
+            same_problem=from_window and config.method == "beta-gtls",
+        )
+
+    def adopt(self, status: EstimateStatus) -> None:
+        """Take a job's status: its τ warm-starts the next ``ml-eiv`` search."""
+        estimate = status.estimate
+        if estimate is not None and estimate.method == "ml-eiv":
+            self._warm = (estimate.tau1, estimate.tau2)
+
+
+@dataclass(frozen=True, kw_only=True)
+class EstimationJob:
+    """One estimate of a window, self-contained: :meth:`run` may run on another thread.
+
+    Attributes
+    ----------
+    config : OnlineConfig
+    stamp_ns : int
+        Stamp of the newest sample, ns (carried into the status).
+    refused : EstimateStatus or None
+        The status when the window is too short to estimate (then nothing else is set).
+    samples : ndarray, shape (n, 2)
+        The window's pairs, degrees C (a copy).
+    segment_starts : ndarray of int
+        Where the window's gap-free segments start (after the first).
+    scatter : ndarray, shape (3, 3)
+        The window's β scatter matrix.
+    rows : int
+        Regression rows of the window.
+    dt : float
+        Sample period, s.
+    warm : (float, float) or None
+        Start of an ``ml-eiv`` search, s.
+    solved : Estimate or str or None
+        The result of an O(1) path, or its error message; None: the batch estimator runs.
+    same_problem : bool
+        Whether ``solved`` is β-GTLS on this scatter (its eigenvalue gives the noise floor).
+    """
+
+    config: OnlineConfig
+    stamp_ns: int
+    refused: EstimateStatus | None = None
+    samples: NDArray[np.float64] = field(default_factory=lambda: np.empty((0, 2)))
+    segment_starts: NDArray[np.intp] = field(default_factory=lambda: np.empty(0, np.intp))
+    scatter: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 3)))
+    rows: int = 0
+    dt: float = math.nan
+    warm: tuple[float, float] | None = None
+    solved: Estimate | str | None = None
+    same_problem: bool = False
+
+    def run(self) -> EstimateStatus:
+        """Estimate τ1, τ2 and grade the result.
+
+        Accepted when well conditioned; a poor fit when the model error beyond the noise floor
+        exceeds ``max_model_error_pct``.
+        """
+        if self.refused is not None:
+            return self.refused
+        config, samples, stamp_ns = self.config, self.samples, self.stamp_ns
+        try:
+            if isinstance(self.solved, str):
+                raise DataError(self.solved)
+            result = self.solved if self.solved is not None else self._estimate_segments()
         except (TcompError, ValueError) as exc:
             return EstimateStatus(
                 accepted=False, estimate=None, reason=str(exc), stamp_ns=stamp_ns
             )
         fit = fit_error_percent(
-            samples[:, 0], samples[:, 1], result.a1, result.a2, window.segment_starts
+            samples[:, 0], samples[:, 1], result.a1, result.a2, self.segment_starts
         )
         # β-GTLS on the window's own scatter has already found the eigenvalue the floor needs.
-        same_problem = from_window and config.method == "beta-gtls"
-        eigenvalue = result.params.get("noise_eigenvalue") if same_problem else None
-        floor = self._noise_floor_percent(samples, eigenvalue)
+        eigenvalue = result.params.get("noise_eigenvalue") if self.same_problem else None
+        floor = self._noise_floor_percent(eigenvalue)
         model = math.sqrt(max(fit**2 - floor**2, 0.0))
         reason = ""
         if not result.condition <= config.max_condition:
@@ -203,16 +287,15 @@ class WindowEstimator:
             poor_fit=model > config.max_model_error_pct,
         )
 
-    def _estimate_segments(self, samples: NDArray[np.float64]) -> Estimate:
+    def _estimate_segments(self) -> Estimate:
         """Batch estimate on the window's gap-free segments (pre-filtered, if configured).
 
         A pre-filter run across a gap would smear the jump into the regression, so each segment
         is filtered alone; β methods pool the segments' scatter matrices, the others use the
         longest segment.
         """
-        config = self._config
-        dt = self._window.dt
-        segments = np.split(samples, self._window.segment_starts)
+        config, dt = self.config, self.dt
+        segments = np.split(self.samples, self.segment_starts)
         prefilter_hz = config.prefilter_hz or None
         phi = config.phi if config.method in PHI_METHODS else 1.0
         if config.method in BETA_METHODS:
@@ -232,38 +315,31 @@ class WindowEstimator:
             result = estimate_beta_from_scatter(scatter, dt, used, config.method, phi)
             return result if prefilter_hz is None else replace(result, prefilter_hz=prefilter_hz)
         longest = max(segments, key=len)
-        result = estimate(
+        return estimate(
             longest[:, 0],
             longest[:, 1],
             dt,
             config.method,  # type: ignore[arg-type]
             phi=phi,
             prefilter_hz=prefilter_hz,
-            start=self._warm,
+            start=self.warm,
         )
-        self._warm = (result.tau1, result.tau2)
-        return result
 
-    def _noise_floor_percent(
-        self, samples: NDArray[np.float64], eigenvalue: float | None = None
-    ) -> float:
+    def _noise_floor_percent(self, eigenvalue: float | None = None) -> float:
         """Fit error that tc2's measurement noise alone would cause, percent of std(tc2).
 
         The smallest generalized eigenvalue of the β scatter with C0(φ) estimates σ2² times the
         number of rows (the row noise covariance is σ2² C0(φ), Eq. 19); ``eigenvalue`` is that
         eigenvalue when the estimate already solved this problem.
         """
-        window = self._window
         if eigenvalue is None:
             try:
-                _, eigenvalues = solve_gtls(
-                    window.scatter, beta_noise_covariance(self._config.phi)
-                )
+                _, eigenvalues = solve_gtls(self.scatter, beta_noise_covariance(self.config.phi))
             except (ValueError, np.linalg.LinAlgError):
                 return math.nan
             eigenvalue = float(eigenvalues[0])
-        sigma2 = math.sqrt(max(eigenvalue, 0.0) / max(window.rows, 1))
-        spread = rms_about_mean(samples[:, 1])
+        sigma2 = math.sqrt(max(eigenvalue, 0.0) / max(self.rows, 1))
+        spread = rms_about_mean(self.samples[:, 1])
         return 100.0 * sigma2 / spread if spread > 0.0 else math.nan
 
 

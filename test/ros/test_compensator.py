@@ -257,7 +257,14 @@ def test_poor_fit_names_the_suspect_and_effects_make_the_error_fall_live(harness
     # One window's worth from the start, where the sensors are at rest: the window then holds
     # the start of the slow conduction mode.
     count = 2000
-    h = harness(window_s=4.0, update_period_s=0.2, max_model_error_pct=5.0)
+    # The sensors then stay silent while the diagnosis runs (up to DIAGNOSIS_DEADLINE_S on a
+    # loaded machine): silence must not turn the status to ERROR meanwhile.
+    h = harness(
+        window_s=4.0,
+        update_period_s=0.2,
+        max_model_error_pct=5.0,
+        silence_timeout_s=4 * DIAGNOSIS_DEADLINE_S,
+    )
     h.feed(stamps_for(count, bag.dt), bag.tc1[:count], bag.tc2[:count])
     # The first-order model fits poorly (model error about 8 %) ...
     h.next_diagnostics(lambda s: "poor fit" in s.message, timeout=10.0)
