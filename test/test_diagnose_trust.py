@@ -338,17 +338,20 @@ def test_each_effect_bounds_how_far_tau_moves_and_conduction_its_conductance_rat
     collapsed = (0.0017, 0.08)
     delay = {"tau1": 0.0165, "tau2": 0.08, "delay_s": 5e-4}
     assert Model(("delay",), delay).implausible(collapsed) == ""
-    assert Model(("calibration",), {**delay, "gain": 1.0, "offset_c": 0.0}).implausible(collapsed)
-    both = Model(("calibration", "delay"), {**delay, "gain": 1.0, "offset_c": 0.0})
+    prop = {"tau1": 0.0165, "tau2": 0.08, "property_exponent": 0.5}
+    assert "at most 5x with property" in Model(("property",), prop).implausible(collapsed)
+    both = Model(("property", "delay"), {**prop, "delay_s": 5e-4})
     assert both.implausible(collapsed) == ""
     assert Model(("delay",), delay).implausible(None) == ""
+    # A gain between the sensors (calibration, radiation) or a line on one of them
+    # (interference) bends the first-order tau without limit.
+    for effect, params in [
+        ("calibration", {"gain": 1.0, "offset_c": 0.0}),
+        ("radiation", {"rho1": 0.1, "rho2": 0.15, "wall_c": 300.0}),
+    ]:
+        assert Model((effect,), {**prop, **params}).implausible((0.25, 1.1)) == ""
     # A first-order tau below a sample gives no scale (the fit found no lag to measure).
-    assert (
-        Model(("calibration",), {**delay, "gain": 1.0, "offset_c": 0.0}).implausible(
-            collapsed, collapsed_below_s=0.002
-        )
-        == ""
-    )
+    assert Model(("property",), prop).implausible(collapsed, collapsed_below_s=0.002) == ""
 
 
 def test_an_implausible_fit_is_never_compensated():

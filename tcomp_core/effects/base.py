@@ -135,7 +135,7 @@ class Effect:
     #: bounded amount for each effect; a fit beyond found no physical explanation and is
     #: degenerate (:meth:`tcomp_core.effects.Model.implausible`). Effects that bias the
     #: first-order τ strongly raise it and say why in their class docstring.
-    max_tau_factor: ClassVar[float] = 3.0
+    max_tau_factor: ClassVar[float] = 5.0
 
     def implausible(self, params: Mapping[str, float]) -> str:
         """Why these parameters are no physical sensor, by this effect's own bounds ('' if none).
