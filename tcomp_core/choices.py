@@ -9,6 +9,7 @@ without loading numpy or scipy. Keep it that way.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Literal, get_args
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "PaperMethod",
     "ReconstructFrom",
     "SignalKind",
+    "parse_effect_list",
 ]
 
 #: The six estimators of Hung et al. (2005), in the paper's order.
@@ -108,3 +110,44 @@ PAPER_TAU1 = 0.0238
 PAPER_TAU2 = 0.1168
 PAPER_DT = 0.002
 PAPER_DURATION = 10.0
+
+
+def parse_effect_list(
+    effects: str | Iterable[str], *, auto: bool = False
+) -> tuple[str, ...] | None:
+    """The one parser of effect lists (``--effects``, the node's ``effects``, the API).
+
+    Parameters
+    ----------
+    effects : str or iterable of str
+        Names from :data:`EFFECT_NAMES`; a string is split at commas and each name stripped,
+        ``""`` and ``"none"`` meaning the base model alone.
+    auto : bool
+        Whether ``"auto"`` (the diagnosis chooses) is allowed; it gives None.
+
+    Returns
+    -------
+    tuple of str or None
+        The names in the order given; None for ``"auto"``.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown, empty or repeated name (and the known ones).
+    """
+    if isinstance(effects, str):
+        text = effects.strip()
+        if auto and text == "auto":
+            return None
+        effects = [] if text in ("", "none") else text.split(",")
+    names = tuple(name.strip() for name in effects)
+    known = ", ".join(EFFECT_NAMES) + (", or auto" if auto else "")
+    for name in names:
+        if not name:
+            raise ValueError(f"an empty effect name in {','.join(names)!r}; choose from {known}")
+        if name not in EFFECT_NAMES:
+            raise ValueError(f"unknown effect {name!r}; choose from {known}")
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise ValueError(f"effects {', '.join(names)} repeat {', '.join(repeated)}")
+    return names

@@ -130,7 +130,8 @@ def test_parse_effects(text, names):
 
 
 @pytest.mark.parametrize(
-    ("text", "message"), [("smoke", "unknown"), ("delay,delay", "repeat"), ("delay,", "unknown")]
+    ("text", "message"),
+    [("smoke", "unknown"), ("delay,delay", "repeat"), ("delay,", "empty effect name")],
 )
 def test_parse_effects_refuses_bad_names(text, message):
     with pytest.raises(ValueError, match=message):

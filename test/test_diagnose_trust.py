@@ -3,6 +3,7 @@ and the unexplained verdict, checked on our effect simulator and on the independ
 physics simulator (test/detailed_physics.py)."""
 
 import dataclasses
+import math
 import re
 
 import numpy as np
@@ -83,6 +84,69 @@ def test_significance_needs_a_fall_above_the_floor_inside_the_physical_range():
     assert MIN_FALL_PER_FLOOR * 2.0 > 0.6 - 0.25
     assert not is_significant(small, smaller)
     assert is_significant(dataclasses.replace(small, noise_floor_pct=0.5), smaller)
+
+
+def test_a_suspect_that_clearly_beats_a_significant_one_is_significant_too():
+    from tcomp_core.diagnose.ranking import _dominant
+    from tcomp_core.diagnose.result import Suspect
+
+    taus = {"tau1": 0.02, "tau2": 0.1}
+    current = _fit(2.5, 2.6, 0.5, [2.5, 2.6, 2.4, 2.7, 2.5], taus)
+    weaker = _fit(1.0, 1.1, 0.5, [1.0, 1.2, 1.1, 1.0, 1.1], {**taus, "tau_leg": 0.01})
+    stronger = _fit(0.08, 0.5, 0.5, [0.5, 0.6, 0.4, 0.5, 0.5], {**taus, "delay_s": 5e-4})
+
+    def suspect(name, fit, significant):
+        return Suspect(
+            effect=name,
+            error_pct=fit.error_pct,
+            evidence=0.5,
+            signature="",
+            significant=significant,
+            fit=fit,
+        )
+
+    marked = _dominant(
+        [suspect("delay", stronger, False), suspect("conduction", weaker, True)], current
+    )
+    assert [s.significant for s in marked] == [True, True]
+    # Not when it is degenerate (a parameter it adds on its bound) ...
+    bound = dataclasses.replace(stronger, at_bound=("delay_s",))
+    marked = _dominant(
+        [suspect("delay", bound, False), suspect("conduction", weaker, True)], current
+    )
+    assert not marked[0].significant
+    # ... nor when it beats the accepted one in too few blocks, nor when nothing was accepted.
+    patchy = dataclasses.replace(stronger, block_errors_pct=np.array([0.5, 1.3, 1.4, 1.2, 0.5]))
+    marked = _dominant(
+        [suspect("delay", patchy, False), suspect("conduction", weaker, True)], current
+    )
+    assert not marked[0].significant
+    alone = _dominant([suspect("delay", stronger, False)], current)
+    assert not alone[0].significant
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("kind", "dt", "delay_s", "seed"),
+    [("multisine", 2e-4, 4e-4, 41), ("exhaust", 2e-4, 6e-4, 42), ("ramp", 1e-4, 3e-4, 43)],
+)
+def test_a_delay_of_a_few_samples_at_a_high_rate_is_the_verdict(kind, dt, delay_s, seed):
+    # The diagnosis works decimated; a delay of 2-3 raw samples is a fraction of a working
+    # sample, and was ruled immaterial while a weaker conduction was taken.
+    sim = simulate_effect(
+        "delay",
+        kind,
+        tau1=0.0165,
+        tau2=0.08,
+        dt=dt,
+        duration=5.0,
+        noise_percent=1.0,
+        seed=seed,
+        params={"delay_s": delay_s},
+    )
+    found = diagnose(_record(sim))
+    assert found.verdict == "delay"
+    assert found.final.params["delay_s"] == pytest.approx(delay_s, rel=0.25)
 
 
 @pytest.mark.slow
@@ -253,3 +317,53 @@ def test_a_coarse_adc_is_counted_in_the_noise_floor_not_called_an_effect():
     found = diagnose(_record(rec, "12-bit"))
     assert found.verdict == "none", [(s.effect, s.error_pct) for s in found.suspects[:3]]
     assert any("quantised in steps of 0.4" in note for note in found.notes)
+
+
+def test_each_effect_bounds_how_far_tau_moves_and_conduction_its_conductance_ratio():
+    from tcomp_core.effects import Model
+    from tcomp_core.effects.conduction import MAX_KAPPA, fin_kappa
+
+    base = (0.0165, 0.08)
+    # The issue's worst case: conduction with tau1 27x the first-order estimate.
+    far = Model(("conduction",), {"tau1": 0.45, "tau2": 1.2, "tau_leg": 0.5, "tau_p": 2.0})
+    assert "tau1 = 0.45 s is 27.3x" in far.implausible(base)
+    # Short legs at the fit's own tau: the supports' conductance dominates the junction's.
+    legs = {"tau1": 0.0165, "tau2": 0.08, "tau_leg": 0.02 * 0.08, "tau_p": 1.0}
+    assert fin_kappa(math.sqrt(0.02)) > MAX_KAPPA
+    assert "conductance to its supports" in Model(("conduction",), legs).implausible(base)
+    fine = {**legs, "tau_leg": 1.7**2 * 0.08}
+    assert Model(("conduction",), fine).implausible(base) == ""
+    # A delay may bring back a tau1 the first-order fit collapsed to a tenth; with a delay in
+    # the model the loosest factor of its effects applies.
+    collapsed = (0.0017, 0.08)
+    delay = {"tau1": 0.0165, "tau2": 0.08, "delay_s": 5e-4}
+    assert Model(("delay",), delay).implausible(collapsed) == ""
+    prop = {"tau1": 0.0165, "tau2": 0.08, "property_exponent": 0.5}
+    assert "at most 5x with property" in Model(("property",), prop).implausible(collapsed)
+    both = Model(("property", "delay"), {**prop, "delay_s": 5e-4})
+    assert both.implausible(collapsed) == ""
+    assert Model(("delay",), delay).implausible(None) == ""
+    # A gain between the sensors (calibration, radiation) or a line on one of them
+    # (interference) bends the first-order tau without limit.
+    for effect, params in [
+        ("calibration", {"gain": 1.0, "offset_c": 0.0}),
+        ("radiation", {"rho1": 0.1, "rho2": 0.15, "wall_c": 300.0}),
+    ]:
+        assert Model((effect,), {**prop, **params}).implausible((0.25, 1.1)) == ""
+    # A first-order tau below a sample gives no scale (the fit found no lag to measure).
+    assert Model(("property",), prop).implausible(collapsed, collapsed_below_s=0.002) == ""
+
+
+def test_an_implausible_fit_is_never_compensated():
+    from tcomp_core.compensation import output_model_from_diagnosis
+
+    sim = simulate_effect("delay", "multisine", duration=4.0, noise_percent=1.0, seed=44)
+    fitted = fit_effects(_record(sim), ("delay",))
+    model = output_model_from_diagnosis(fitted)
+    assert model.applied() == ("delay",)
+    far = dataclasses.replace(
+        fitted.final, params={**fitted.final.params, "tau2": 50.0 * fitted.base.tau2}
+    )
+    refused = output_model_from_diagnosis(dataclasses.replace(fitted, final=far))
+    assert refused.applied() == () and refused.name() == "first-order"
+    assert all("no physical sensor" in piece.reason for piece in refused.pieces)

@@ -144,3 +144,31 @@ def test_model_refuses_unknown_and_repeated_effects():
         "interference",
         "noise_ratio",
     }
+
+
+def test_every_effect_list_goes_through_one_parser():
+    import argparse
+
+    from tcomp_core.choices import parse_effect_list
+    from tcomp_core.cli.common import effect_list
+    from tcomp_core.compensation import parse_compensate_effects
+    from tcomp_core.diagnose.background import parse_effects
+
+    assert parse_effect_list(" delay , conduction ") == ("delay", "conduction")
+    assert parse_effect_list("none") == () == parse_effect_list("  ")
+    assert parse_effect_list("auto", auto=True) is None
+    for text, message in [
+        ("auto", "unknown effect 'auto'"),
+        ("delay,,conduction", "empty effect name"),
+        ("delay, delay", "repeat delay"),
+        ("smoke", "unknown effect 'smoke'"),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            parse_effect_list(text)
+        with pytest.raises(ValueError, match=message):
+            parse_effects(text)
+        with pytest.raises(argparse.ArgumentTypeError, match=message):
+            effect_list(text)
+    for text in (" delay ", "delay,calibration", "none", ""):
+        assert parse_compensate_effects(text) == parse_effects(text) == tuple(effect_list(text))
+    assert parse_compensate_effects(" auto ") is None

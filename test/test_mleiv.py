@@ -286,6 +286,7 @@ def test_params_are_plain_floats():
         "tau2_ci_low",
         "tau2_ci_high",
         "noise_sigma2",
+        "offset_c",
         "phi_estimated",
         "start_beta_gtls",
         "start_warm",
@@ -296,3 +297,16 @@ def test_params_are_plain_floats():
     assert result.params["tau1_ci_low"] < result.tau1 < result.params["tau1_ci_high"]
     # σ2 implied by the fit agrees with the simulated noise
     assert result.params["noise_sigma2"] == pytest.approx(pair.sigma2, rel=0.05)
+
+
+@pytest.mark.parametrize("kind", ["sinusoid", "ramp", "multisine", "exhaust"])
+def test_an_offset_between_the_sensors_leaves_tau_and_is_reported(kind):
+    # IEC 60584 class 2 allows ±2.5 °C: an offset used to drag τ to the edge of the search.
+    pair = make_pair(kind, noise_percent=1.0, seed=3)
+    clean = ml_eiv(pair.tc1, pair.tc2, pair.dt, 1.0)
+    for offset in (-2.5, 1.0, 40.0):
+        shifted = ml_eiv(pair.tc1 + offset, pair.tc2, pair.dt, 1.0)
+        assert shifted.tau1 == pytest.approx(clean.tau1, rel=1e-6)
+        assert shifted.tau2 == pytest.approx(clean.tau2, rel=1e-6)
+        assert shifted.params["offset_c"] == pytest.approx(offset, abs=0.02)
+        assert shifted.params["tau1_ci_low"] <= pair.tau1 <= shifted.params["tau1_ci_high"]

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..choices import DEFAULT_METHOD, DEFAULT_TOPICS, EFFECT_NAMES, METHODS
+from ..choices import DEFAULT_METHOD, DEFAULT_TOPICS, METHODS, parse_effect_list
 from ..errors import TcompError
 
 if TYPE_CHECKING:
@@ -84,13 +84,11 @@ def effect_list(text: str) -> list[str]:
     argparse.ArgumentTypeError
         Naming the unknown effect and the known ones.
     """
-    names = [name.strip() for name in text.split(",") if name.strip()]
-    for name in names:
-        if name not in EFFECT_NAMES:
-            raise argparse.ArgumentTypeError(
-                f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}"
-            )
-    return names
+    try:
+        names = parse_effect_list(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return list(names or ())
 
 
 def add_source_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..choices import parse_effect_list
 from ..effects import FitContext, Model
 from ..effects.chain import SensorChain
 
@@ -292,7 +293,19 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         raise ValueError(f"{diagnosis.source}: the diagnosis carries no fit context")
     final = diagnosis.final
     expected = set(diagnosis.expected_physics)
-    pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
+    base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
+    implausible = Model(tuple(final.effects), dict(final.params)).implausible(
+        base_taus, diagnosis.context.dt
+    )
+    if implausible:  # a degenerate fit is never compensated: everything stays first order
+        pieces = tuple(
+            Piece(effect, "first order", f"the fit is no physical sensor: {implausible}")
+            for effect in final.effects
+        )
+    else:
+        pieces = tuple(
+            _piece(effect, effect in expected, final.intervals) for effect in final.effects
+        )
     return OutputModel(
         effects=tuple(final.effects),
         params=dict(final.params),
@@ -301,7 +314,7 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         error_pct=float(final.error_pct),
         base_error_pct=float(diagnosis.base.error_pct),
         origin_s=origin_s,
-        base_taus=(float(diagnosis.base.tau1), float(diagnosis.base.tau2)),
+        base_taus=base_taus,
         band_hz=float(diagnosis.eval_cutoff_hz),
         notes=tuple(diagnosis.identifiability),
         at_bound=tuple(final.at_bound),
@@ -318,12 +331,7 @@ def parse_compensate_effects(text: str) -> tuple[str, ...] | None:
     ValueError
         On an unknown or repeated effect name.
     """
-    from ..effects import check_effect_names
-
-    if text.strip() == "auto":
-        return None
-    names = [] if text.strip() in ("", "none") else [name.strip() for name in text.split(",")]
-    return check_effect_names(names)
+    return parse_effect_list(text, auto=True)
 
 
 def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputModel:

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..choices import parse_effect_list
 from ..compensation import output_model_from_diagnosis
-from ..effects import check_effect_names
 from ..io import Record
 from ..workers import JobRunner, ProcessRunner
 from .pipeline import diagnose, fit_effects
@@ -55,9 +55,9 @@ def parse_effects(effects: str | Sequence[str]) -> tuple[str, ...]:
     ValueError
         On an unknown or repeated name.
     """
-    if isinstance(effects, str):
-        effects = [] if effects.strip() in ("", "none") else effects.split(",")
-    return check_effect_names(name.strip() for name in effects)
+    parsed = parse_effect_list(effects)
+    assert parsed is not None  # "auto" is not allowed here
+    return parsed
 
 
 def run_job(

@@ -18,14 +18,22 @@ An effect is *significant* when its refit
   :data:`CALIBRATION_MIN_GAIN` or a difference of :data:`CALIBRATION_MIN_OFFSET_C` at the mean
   level), a radiative conductance of :data:`RADIATION_MIN_RHO` on the wire that radiates more,
   an interference line that one channel carries beyond what the other explains, a delay of
-  at least :data:`DELAY_MIN_SAMPLES` of a sample (a delay fitted at zero is no delay: its fall
-  came from the restarts of τ that the delay's search makes).
+  at least :data:`DELAY_MIN_SAMPLES` of a sample of the record (a delay fitted at zero is no
+  delay: its fall came from the restarts of τ that the delay's search makes). The record's own
+  sample, not the working rate's: the diagnosis decimates a 5 kHz record to a few hundred Hz,
+  and a delay of 2.5 raw samples, fitted by a fractional shift, is then a fraction of a
+  working sample, yet it is real and it moves τ and the gas.
   Rectification by the sensors' nonlinear physics (τ following the level) leaves the two
   sensors' means a few hundredths of a degree apart, which is no calibration error. A
   calibration or radiation that passes the statistical rules but is not material is still
   added to the model when it fits best, as the sensors' ordinary physics (within the
   tolerance of special-limits type K, ±0.4 %; a radiative loss too small to matter), never as
   the verdict: an effect that explains the residual less well must then beat it.
+
+**Parsimony that holds**: a suspect whose held-out error is clearly below that of a
+significant one (by :data:`TIE_TOLERANCE`) and which beats it in :data:`MIN_BLOCK_SHARE` of the
+validation blocks is significant too, unless its fit is degenerate (:func:`_dominant`): one
+rule must not refuse the stronger explanation while a weaker one is accepted.
 
 Unequal noise (``noise_ratio``) is measured rather than fitted, so a clearly unequal noise
 ratio counts by itself when the refit does no harm (:func:`is_significant`).
@@ -54,6 +62,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,6 +82,7 @@ __all__ = [
     "MAX_EFFECTS",
     "block_t",
     "fit_with_effect",
+    "implausibility",
     "is_expected_physics",
     "is_material",
     "is_significant",
@@ -114,7 +124,7 @@ RADIATION_MIN_RHO = 0.01
 #: asks gain within ±0.5 % and offset within ±0.2 degC).
 CALIBRATION_MIN_GAIN = 0.005
 CALIBRATION_MIN_OFFSET_C = 0.2
-#: Least delay that counts, in samples of the working rate.
+#: Least delay that counts, in samples of the record (not of the working rate).
 DELAY_MIN_SAMPLES = 0.5
 #: Least relative change of τ over the film temperature's range (5th to 95th percentile; the
 #: film is the mean of the fast sensor's reading and its reconstructed gas) at which a
@@ -353,19 +363,69 @@ def next_round(
             )
             continue
         evidence = 1.0 - fit.error_pct / current.error_pct if current.error_pct > 0 else 0.0
+        implausible = implausibility(fit, evaluator)
         suspects.append(
             Suspect(
                 effect=name,
                 error_pct=fit.error_pct,
                 evidence=evidence,
-                signature=signature(name, evaluator, current, fit),
+                signature=f"{signature(name, evaluator, current, fit)}"
+                + (f"; implausible: {implausible}" if implausible else ""),
                 significant=is_significant(current, fit, name, evaluator.data.phi_hat)
-                and (name in ORDINARY_WHEN_SMALL or is_material(name, fit, evaluator)),
+                and (name in ORDINARY_WHEN_SMALL or is_material(name, fit, evaluator))
+                and not implausible,
                 fit=fit,
             )
         )
-    ranked = _radiation_or_calibration(rank(suspects), evaluator, current)
+    plausible = [s for s in suspects if s.fit is not None and not implausibility(s.fit, evaluator)]
+    ranked = _radiation_or_calibration(
+        rank(_dominant(suspects, current, plausible)), evaluator, current
+    )
     return _expected_physics_first(ranked, evaluator)
+
+
+def _dominant(
+    suspects: list[Suspect], current: ModelFit, plausible: Sequence[Suspect] | None = None
+) -> list[Suspect]:
+    """Mark significant every suspect that clearly beats a significant one (module notes).
+
+    Its statistics or its size may have failed a rule on their own (a delay below the
+    materiality threshold, a fall spread unevenly over the blocks); a degenerate fit (a
+    parameter on a bound) stays refused, and so does one not in ``plausible`` (default: all).
+    """
+    accepted = [s.fit for s in suspects if s.significant and s.fit is not None]
+    if not accepted:
+        return suspects
+    marked = []
+    for suspect in suspects:
+        fit = suspect.fit
+        allowed = plausible is None or any(suspect is other for other in plausible)
+        if not suspect.significant and fit is not None and allowed:
+            if _degenerate(fit, current):
+                marked.append(suspect)
+                continue
+            for other in accepted:
+                clearly = fit.raw_error_pct < (1.0 - TIE_TOLERANCE) * other.raw_error_pct
+                before, after = other.block_errors_pct, fit.block_errors_pct
+                both = np.isfinite(before) & np.isfinite(after)
+                if before.size != after.size or not both.any():
+                    continue
+                if clearly and float(np.mean(after[both] < before[both])) >= MIN_BLOCK_SHARE:
+                    suspect = replace(suspect, significant=True)
+                    break
+        marked.append(suspect)
+    return marked
+
+
+def implausibility(fit: ModelFit, evaluator: Evaluator) -> str:
+    """Why the fitted model is no physical sensor ('' if plausible): see :meth:`Model.implausible`.
+
+    Judged against the first-order τ of the record (``evaluator.context.base_taus_s``), where
+    it is not below a working sample.
+    """
+    return Model(fit.effects, fit.params).implausible(
+        evaluator.context.base_taus_s, evaluator.data.dt
+    )
 
 
 def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
@@ -380,7 +440,8 @@ def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
     if name == "radiation":
         return bool(max(p["rho1"], p["rho2"]) >= RADIATION_MIN_RHO)
     if name == "delay":
-        return bool(abs(p["delay_s"]) >= DELAY_MIN_SAMPLES * evaluator.data.dt)
+        record_dt = evaluator.data.dt / evaluator.data.decimation
+        return bool(abs(p["delay_s"]) >= DELAY_MIN_SAMPLES * record_dt)
     if name == "interference":
         # The line must be there: one channel carries it beyond what the other explains with
         # the base model's τ (the candidate's own τ could make a gas harmonic look foreign).

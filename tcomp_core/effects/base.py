@@ -130,6 +130,20 @@ class Effect:
     #: Whether the effect's chain depends on the sample times (``FitContext.time``), so that it
     #: cannot be fitted on a stretch of the record alone.
     uses_sample_times: ClassVar[bool] = False
+    #: How far a fit with this effect may move either τ from the first-order estimate (a factor,
+    #: either way). The first-order τ absorbs what the effect does, so it is biased, but by a
+    #: bounded amount for each effect; a fit beyond found no physical explanation and is
+    #: degenerate (:meth:`tcomp_core.effects.Model.implausible`). Effects that bias the
+    #: first-order τ strongly raise it and say why in their class docstring.
+    max_tau_factor: ClassVar[float] = 5.0
+
+    def implausible(self, params: Mapping[str, float]) -> str:
+        """Why these parameters are no physical sensor, by this effect's own bounds ('' if none).
+
+        Parameters beyond the search range cannot occur (the fit is bounded); these are bounds
+        that involve several parameters, e.g. conduction's conductance ratio at the fit's τ.
+        """
+        return ""
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         """The effect's fitted parameters and their bounds for this record."""

@@ -7,6 +7,7 @@ reciprocal gain and a scaled offset; the time constants are unaffected.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -21,9 +22,15 @@ GAIN_LIMIT = 0.2
 
 
 class Calibration(Effect):
-    """Gain (dimensionless) and offset (degrees C) of tc2 relative to tc1."""
+    """Gain (dimensionless) and offset (degrees C) of tc2 relative to tc1.
+
+    τ may move any distance from the first-order estimate (:attr:`max_tau_factor` infinite):
+    the first-order model has no gain between the sensors and bends τ to explain one without
+    limit (0.75 % of gain moved τ1 by +34 % on a slow drift).
+    """
 
     name = "calibration"
+    max_tau_factor = math.inf
     summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:

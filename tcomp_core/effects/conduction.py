@@ -62,6 +62,8 @@ FIN_TERMS = 6
 #: Search range of the fin length of the slower wire, mL: 0.4 (conduction dominates: κ ≈ 12)
 #: to 7 (the supports pull by sech(7) ≈ 0.2 %: no conduction).
 FIN_ML_RANGE = (0.4, 7.0)
+#: Largest steady conductance ratio κ of a plausible fit (mL = 0.4 at the fit's own τ).
+MAX_KAPPA = 1.0 / (math.cosh(FIN_ML_RANGE[0]) - 1.0)
 
 
 def fin_kappa(fin_ml: float) -> float:
@@ -125,7 +127,15 @@ def fin_filter(
 
 
 class Conduction(Effect):
-    """τ_leg (s), τp (s) and the supports' initial excess ``mode1``, ``mode2`` (degrees C)."""
+    """τ_leg (s), τp (s) and the supports' initial excess ``mode1``, ``mode2`` (degrees C).
+
+    Plausible (:meth:`implausible`) when each wire's steady conductance ratio to its supports,
+    κ_i = :func:`fin_kappa` (√(τ_leg/τ_i)) at the fit's own τ_i, is at most
+    :data:`MAX_KAPPA`: the edge of the search range of mL (0.4), where the supports take
+    over 90 % of the junction's steady heat balance. A junction whose conductance to its
+    supports is tens or hundreds of times its convective conductance reads the supports, not
+    the gas: it is not a thermocouple in a flow, and such a fit has only traded τ for legs.
+    """
 
     name = "conduction"
     summary = "conduction along the legs to supports that lag the gas (tau_leg, tau_p)"
@@ -134,6 +144,21 @@ class Conduction(Effect):
     # far shorter than real ones and τ tens of percent high; the free-run error does not.
     output_error_params = ("tau_leg",)
     output_error_coupled = True  # τ and the supports' lag move with the legs' length
+
+    def implausible(self, params: Mapping[str, float]) -> str:
+        if "tau_leg" not in params:
+            return ""
+        for index in (1, 2):
+            tau = params.get(f"tau{index}", math.nan)
+            if not tau > 0.0:
+                continue
+            kappa = fin_kappa(math.sqrt(params["tau_leg"] / tau))
+            if kappa > MAX_KAPPA:
+                return (
+                    f"conduction: wire {index}'s conductance to its supports is {kappa:.3g}x "
+                    f"its convective conductance (at most {MAX_KAPPA:.3g}x)"
+                )
+        return ""
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         slowest = max(context.duration_s / 3.0, 4.0 * context.tau_scale_s)

@@ -121,10 +121,16 @@ def _refine(reading: NDArray[np.float64], context: FitContext, f0: float) -> flo
 
 
 class Interference(Effect):
-    """``interference_hz`` and the amplitudes ``interference_a{h}``, ``interference_b{h}``."""
+    """``interference_hz`` and the amplitudes ``interference_a{h}``, ``interference_b{h}``.
+
+    τ may move any distance from the first-order estimate (:attr:`max_tau_factor` infinite):
+    the line is a signal only one sensor carries, and the first-order fit bends τ to explain
+    it without limit (a 1 °C mains line on a multisine put τ1 at 6.8× the truth).
+    """
 
     name = "interference"
     uses_sample_times = True
+    max_tau_factor = math.inf
     summary = (
         "a line and its odd harmonics on one channel, e.g. mains pick-up (interference_hz, "
         "amplitudes)"

@@ -63,9 +63,16 @@ def max_radiation_ratio(tau_s: float, mean_c: float) -> float:
 
 
 class Radiation(Effect):
-    """ρ1, ρ2 (dimensionless) and the wall temperature (degrees C)."""
+    """ρ1, ρ2 (dimensionless) and the wall temperature (degrees C).
+
+    τ may move any distance from the first-order estimate (:attr:`max_tau_factor` infinite):
+    linearised, radiation is a relative gain and offset of the two sensors, which the
+    first-order model explains by bending τ without limit (on hot engine pulses of the
+    detailed simulator the first-order τ came out 5× the radiation fit's).
+    """
 
     name = "radiation"
+    max_tau_factor = math.inf
     summary = (
         "radiation to the wall lowers the reading with the temperature level (rho1, rho2, wall)"
     )

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from ..choices import EFFECT_NAMES
+from ..choices import EFFECT_NAMES, parse_effect_list
 from .base import Effect
 from .calibration import Calibration
 from .conduction import Conduction
@@ -56,10 +56,6 @@ def check_effect_names(names: Iterable[str]) -> tuple[str, ...]:
     ValueError
         Naming the unknown effect (and the known ones) or the repetition.
     """
-    names = tuple(names)
-    for name in names:
-        if name not in EFFECTS:
-            raise ValueError(f"unknown effect {name!r}; choose from {', '.join(EFFECT_NAMES)}")
-    if len(set(names)) != len(names):
-        raise ValueError(f"effects {', '.join(names)} repeat an effect")
-    return names
+    parsed = parse_effect_list(tuple(names))
+    assert parsed is not None  # "auto" is not allowed here
+    return parsed

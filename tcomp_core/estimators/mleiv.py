@@ -16,15 +16,21 @@ for every c, and minimising
 
     J(τ1, τ2) = e ᵀ Σ⁻¹ e
 
-is consistent. It is the efficient weighting of the residual: β-GTLS (Eqs. 18–21) weights the
+is consistent. A constant offset b between the two readings (a calibration or cold-junction
+error; IEC 60584 class 2 allows ±2.5 °C) adds a constant to e and, left in, drags τ to the
+edge of the search; it is eliminated at every τ (variable projection,
+:meth:`_CrossRelation.projected`), so J is minimised over (τ1, τ2, b) and b is reported
+(``offset_c``). A gain mismatch is not: with one sinusoid it cannot be told from τ. It is the
+efficient weighting of the residual: β-GTLS (Eqs. 18–21) weights the
 same equation error by its variance alone and ignores the band of Σ; at the paper's conditions
 and K = 4 % its τ1 scatters about three times as much.
 
 Σ is tridiagonal Toeplitz, so the whitened residual L⁻¹e (Σ = LLᵀ) has a closed form that
-costs one first-order recursive filter (:meth:`_CrossRelation.whitened`);
-:func:`scipy.optimize.least_squares` minimises its squared norm over log τ. The asymptotic
-covariance of log τ is σ̂² (JᵀJ)⁻¹ with J the Jacobian of the whitened residual and
-σ̂² = J_min/(N - 3). The regressors ΔT_mi are noisy, so XᵀΣ⁻¹X (X = ∂e/∂c) overstates the
+costs one first-order recursive filter (:meth:`_CrossRelation.whiten`);
+:func:`scipy.optimize.least_squares` minimises the squared norm of the projected residual over
+log τ. The asymptotic
+covariance of log τ is σ̂² (JᵀJ)⁻¹ with J the Jacobian of the projected residual and
+σ̂² = J_min/(N - 4). The regressors ΔT_mi are noisy, so XᵀΣ⁻¹X (X = ∂e/∂c) overstates the
 information; JᵀJ, which also carries the derivative of the whitening, matched the
 noise-corrected X_Sᵀ Σ⁻¹ X_S (clean regressors) within 0.2 % in Monte Carlo checks. The
 fourth-order noise term of the score's variance, computed in the frequency domain, stays below
@@ -66,6 +72,8 @@ _GRID_POINTS = 12
 _ROUNDING = 1e-10
 #: Range of the start grid and of the search, in sample intervals (low) and record lengths (high).
 _TAU_LOW_SAMPLES = 0.02
+#: Parameters fitted to the residual: τ1, τ2 and the offset between the sensors.
+_FITTED = 3
 _TAU_HIGH_RECORDS = 10.0
 
 
@@ -178,7 +186,31 @@ class _CrossRelation:
         return float(diagonal), float(off_diagonal)
 
     def whitened(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
-        """L⁻¹ e with Σ = LLᵀ (Cholesky), shape (M,), in units of σ2: its squared norm is J.
+        """L⁻¹ e with Σ = LLᵀ (Cholesky), shape (M,), in units of σ2 (see :meth:`whiten`)."""
+        return self.whiten(log_tau, self.residual(log_tau))
+
+    def projected(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
+        """L⁻¹ (e - b), shape (M,), with the offset b between the sensors that fits best.
+
+        A constant offset of one sensor's reading (calibration, cold junction) adds a constant
+        to e; it is a linear parameter, eliminated in closed form at every τ (variable
+        projection: the whitened residual minus its projection on the whitened constant).
+        The squared norm is J minimised over b.
+        """
+        whitened, constant = self.whiten(log_tau, np.stack((self.residual(log_tau), self._ones)))
+        return whitened - constant * ((constant @ whitened) / (constant @ constant))
+
+    def offset(self, log_tau: NDArray[np.float64]) -> float:
+        """The best offset b of :meth:`projected`: tc1's reading minus tc2's, degrees C."""
+        whitened, constant = self.whiten(log_tau, np.stack((self.residual(log_tau), self._ones)))
+        return float((constant @ whitened) / (constant @ constant))
+
+    @functools.cached_property
+    def _ones(self) -> NDArray[np.float64]:
+        return np.ones(self.rows)
+
+    def whiten(self, log_tau: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray:
+        """L⁻¹ values with Σ = LLᵀ (Cholesky), shape (M,) or (k, M) as ``values``, in σ2.
 
         Σ is tridiagonal Toeplitz, so its leading minors are D_k = (r1^(k+2) - r2^(k+2)) /
         (r1 - r2), r1,2 the roots of r² - d r + o², and its pivots p_k = D_k / D_(k-1). With
@@ -197,8 +229,8 @@ class _CrossRelation:
         # D̃_k for k = -1 .. M-1: (1 - q^(k+2)) / (1 - q).
         minors = np.expm1(self._minor_index * log_q) / math.expm1(log_q)
         previous, current = minors[:-1], minors[1:]
-        scaled = lfilter([1.0], [1.0, off_diagonal / r1], previous * self.residual(log_tau))
-        return scaled / np.sqrt(r1 * current * previous)
+        scaled = lfilter([1.0], [1.0, off_diagonal / r1], previous * values, axis=-1)
+        return np.asarray(scaled / np.sqrt(r1 * current * previous))
 
     @functools.cached_property
     def _minor_index(self) -> NDArray[np.float64]:
@@ -206,8 +238,8 @@ class _CrossRelation:
         return np.arange(1.0, self.rows + 2.0)
 
     def criterion(self, log_tau: NDArray[np.float64]) -> float:
-        """J = eᵀ Σ⁻¹ e, degrees C²."""
-        whitened = self.whitened(log_tau)
+        """J = (e - b)ᵀ Σ⁻¹ (e - b) at the best offset b, degrees C²."""
+        whitened = self.projected(log_tau)
         return float(whitened @ whitened)
 
     def bounds(self) -> tuple[float, float]:
@@ -265,8 +297,12 @@ def _equilibrated_condition(jacobian: NDArray[np.float64]) -> float:
 
 
 def _log_tau_covariance(jacobian: NDArray[np.float64], cost: float, rows: int) -> NDArray:
-    """Asymptotic covariance σ̂² (JᵀJ)⁻¹ of log τ, shape (2, 2); σ̂² = J_min/(M - 2)."""
-    noise_variance = 2.0 * cost / (rows - 2)
+    """Asymptotic covariance σ̂² (JᵀJ)⁻¹ of log τ, shape (2, 2); σ̂² = J_min/(M - 3).
+
+    J is the Jacobian of the projected residual, so the offset's uncertainty is accounted for
+    (variable projection); three parameters were fitted.
+    """
+    noise_variance = 2.0 * cost / (rows - _FITTED)
     return noise_variance * np.linalg.inv(jacobian.T @ jacobian)
 
 
@@ -313,6 +349,7 @@ def ml_eiv(
         the column-equilibrated whitened Jacobian. ``params``: ``tau1_se``, ``tau2_se``
         (asymptotic standard errors, s), ``tau1_ci_low``, ``tau1_ci_high``, ``tau2_ci_low``,
         ``tau2_ci_high`` (95 % intervals, s), ``noise_sigma2`` (σ2 implied by J_min, degrees C),
+        ``offset_c`` (the fitted offset of tc1's reading over tc2's, degrees C),
         ``phi_estimated`` (1.0 if φ was measured), ``start_beta_gtls`` (1.0 if the search
         started from β-GTLS), ``start_warm`` (1.0 if from ``start``) and ``evaluations`` (of
         the residual, not counting the Jacobian's).
@@ -333,7 +370,7 @@ def ml_eiv(
     initial, origin = _start(problem, tc1, tc2, start)
     low, high = problem.bounds()
     fit = least_squares(
-        problem.whitened, initial, jac="3-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
+        problem.projected, initial, jac="3-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
     )
     if not fit.success:
         raise EstimationError(f"ml-eiv: the search did not converge ({fit.message})")
@@ -354,7 +391,8 @@ def ml_eiv(
     a1, a2 = np.exp(-dt / tau)
     params = {
         **_interval_params(tau, _log_tau_covariance(jacobian, fit.cost, problem.rows)),
-        "noise_sigma2": math.sqrt(2.0 * fit.cost / (problem.rows - 2)),
+        "noise_sigma2": math.sqrt(2.0 * fit.cost / (problem.rows - _FITTED)),
+        "offset_c": problem.offset(fit.x),
         "phi_estimated": 1.0 if measured else 0.0,
         "start_beta_gtls": 1.0 if origin == "beta-gtls" else 0.0,
         "start_warm": 1.0 if origin == "warm" else 0.0,
