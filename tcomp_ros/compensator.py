@@ -67,6 +67,8 @@ __all__ = ["CompensatorNode", "descriptor", "main"]
 
 #: Period of the timer that drains the inbox, match pairs and publishes, seconds.
 PROCESS_PERIOD_S = 0.005
+#: Longest time a thread of the node holds the interpreter while another waits for it, s.
+SWITCH_INTERVAL_S = 0.0005
 #: The node waits this long at start for its fitting worker process to be ready, seconds.
 WORKER_START_S = 30.0
 #: Reliability of the input subscriptions by ``input_reliability``. Best effort (the default)
@@ -129,6 +131,11 @@ class CompensatorNode(Node):
         fits = ProcessRunner() if background else None
         diagnoses = ProcessRunner() if background else InlineRunner()
         estimates = ThreadRunner("tcomp-estimate") if background else None
+        if background:
+            # The executor's thread gives the interpreter up at every rclpy call (take,
+            # publish, wait) and then waits for the estimating thread to hand it back: at
+            # most this long (Python's default, 5 ms, stretched a drain of 100 messages).
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
         self._engine = Engine(
             OnlineConfig.from_parameters(self._values),
             runner=fits,
