@@ -220,3 +220,16 @@ def test_an_estimate_on_a_thread_lands_at_a_later_drain_with_the_inline_result(s
         assert engine.report(2.1).values["estimate_age_s"] != "inf"  # recorded when it landed
         engine.close()
     assert found["thread"] == pytest.approx(found["inline"], rel=1e-6)
+
+
+def test_landed_estimates_are_bounded_for_a_caller_that_never_takes_them(sine):
+    from tcomp_core.online.compensator import LANDED_KEPT
+
+    compensator = OnlineCompensator(OnlineConfig(reconstruction="difference", window_s=0.2))
+    stamps = _stamps(sine)
+    compensator.add_pairs(stamps[:2000], sine.tc1[:2000], sine.tc2[:2000])
+    for _ in range(LANDED_KEPT + 5):
+        compensator.update_estimate()
+    landed = compensator.take_landed()
+    assert len(landed) == LANDED_KEPT and landed[-1] is compensator.last_status
+    assert compensator.take_landed() == []

@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import replace
 
 import numpy as np
@@ -65,6 +66,8 @@ FIRST_AGREEMENT = 0.1
 #: output model catches up through the pairs that came while its job ran, and the background
 #: diagnosis fits the newest stretch of them.
 RECENT_S = 60.0
+#: Landed estimate statuses kept for :meth:`OnlineCompensator.take_landed`.
+LANDED_KEPT = 16
 
 
 class OnlineCompensator:
@@ -129,8 +132,9 @@ class OnlineCompensator:
         self._estimates: JobRunner = (
             estimate_runner if estimate_runner is not None else InlineRunner()
         )
-        #: Statuses of the :meth:`update_estimate` jobs that landed since :meth:`take_landed`.
-        self._landed: list[EstimateStatus] = []
+        #: Statuses of the :meth:`update_estimate` jobs that landed since :meth:`take_landed`
+        #: (the newest few: a caller that never takes them must not accumulate them).
+        self._landed: deque[EstimateStatus] = deque(maxlen=LANDED_KEPT)
         self._asked = False  # whether the running estimate was asked by update_estimate
         self._building_for: KalmanReconstructor | None = None  # of the filter build running
         self._wanted_filter = ""  # 'refit' or 'retune' waiting for the runner
@@ -726,7 +730,8 @@ class OnlineCompensator:
 
     def take_landed(self) -> list[EstimateStatus]:
         """The statuses of the estimates that landed since the last call, oldest first."""
-        landed, self._landed = self._landed, []
+        landed = list(self._landed)
+        self._landed.clear()
         return landed
 
     def _collect_estimate(self) -> None:
