@@ -338,6 +338,7 @@ def test_each_effect_bounds_how_far_tau_moves_and_conduction_its_conductance_rat
     collapsed = (0.0017, 0.08)
     delay = {"tau1": 0.0165, "tau2": 0.08, "delay_s": 5e-4}
     assert Model(("delay",), delay).implausible(collapsed) == ""
+    assert Model(("delay",), delay).implausible((0.0165 / 25, 0.08)) == ""  # 9 ms, pulses
     prop = {"tau1": 0.0165, "tau2": 0.08, "property_exponent": 0.5}
     assert "at most 5x with property" in Model(("property",), prop).implausible(collapsed)
     both = Model(("property", "delay"), {**prop, "delay_s": 5e-4})
@@ -361,9 +362,10 @@ def test_an_implausible_fit_is_never_compensated():
     fitted = fit_effects(_record(sim), ("delay",))
     model = output_model_from_diagnosis(fitted)
     assert model.applied() == ("delay",)
-    far = dataclasses.replace(
-        fitted.final, params={**fitted.final.params, "tau2": 50.0 * fitted.base.tau2}
-    )
+    # Legs so short at the fit's tau that the supports carry 50x the junction's convection.
+    params = {"tau1": fitted.final.tau1, "tau2": fitted.final.tau2, "tau_p": 1.0}
+    params["tau_leg"] = fitted.final.tau2 * 0.2**2
+    far = dataclasses.replace(fitted.final, effects=("conduction",), params=params)
     refused = output_model_from_diagnosis(dataclasses.replace(fitted, final=far))
     assert refused.applied() == () and refused.name() == "first-order"
     assert all("no physical sensor" in piece.reason for piece in refused.pieces)

@@ -36,14 +36,15 @@ _FAILED = 1e30
 class Delay(Effect):
     """δ (s), positive when tc2 sees the gas later.
 
-    τ may move by up to :attr:`max_tau_factor` (20×) from the first-order estimate: a delay
-    of a few samples collapses the base model's τ1 to a tenth of the truth or less, and the
-    delay brings it back.
+    τ may move any distance from the first-order estimate (:attr:`max_tau_factor` infinite):
+    the base model absorbs a delay into τ2 − τ1, so a delay of a few samples collapses its τ1
+    to a tenth of the truth, one longer than τ1 to its bound (9 ms on engine pulses put it at
+    a 25th), and the delay brings it back.
     """
 
     name = "delay"
     summary = "tc2 sees the gas later than tc1 (delay_s)"
-    max_tau_factor = 20.0
+    max_tau_factor = math.inf
 
     def _bound(self, context: FitContext) -> float:
         return float(min(max(context.tau_scale_s, 20.0 * context.dt), context.duration_s / 10.0))
