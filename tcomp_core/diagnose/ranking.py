@@ -348,6 +348,7 @@ def next_round(
 ) -> list[Suspect]:
     """Refit ``model`` plus each candidate effect; the suspects, best first."""
     suspects = []
+    implausible_fits = []  # per suspect: whether its fit is no physical sensor
     for name in candidates:
         try:
             _, fit = fit_with_effect(evaluator, model, name)
@@ -361,6 +362,7 @@ def next_round(
                     significant=False,
                 )
             )
+            implausible_fits.append(False)
             continue
         evidence = 1.0 - fit.error_pct / current.error_pct if current.error_pct > 0 else 0.0
         implausible = implausibility(fit, evaluator)
@@ -377,33 +379,31 @@ def next_round(
                 fit=fit,
             )
         )
-    plausible = [s for s in suspects if s.fit is not None and not implausibility(s.fit, evaluator)]
+        implausible_fits.append(bool(implausible))
     ranked = _radiation_or_calibration(
-        rank(_dominant(suspects, current, plausible)), evaluator, current
+        rank(_dominant(suspects, current, implausible_fits)), evaluator, current
     )
     return _expected_physics_first(ranked, evaluator)
 
 
 def _dominant(
-    suspects: list[Suspect], current: ModelFit, plausible: Sequence[Suspect] | None = None
+    suspects: list[Suspect], current: ModelFit, implausible: Sequence[bool] | None = None
 ) -> list[Suspect]:
     """Mark significant every suspect that clearly beats a significant one (module notes).
 
     Its statistics or its size may have failed a rule on their own (a delay below the
     materiality threshold, a fall spread unevenly over the blocks); a degenerate fit (a
-    parameter on a bound) stays refused, and so does one not in ``plausible`` (default: all).
+    parameter on a bound) stays refused, and so does one flagged in ``implausible`` (one flag
+    per suspect; default: none).
     """
     accepted = [s.fit for s in suspects if s.significant and s.fit is not None]
     if not accepted:
         return suspects
+    flags = implausible if implausible is not None else [False] * len(suspects)
     marked = []
-    for suspect in suspects:
+    for suspect, refused in zip(suspects, flags, strict=True):
         fit = suspect.fit
-        allowed = plausible is None or any(suspect is other for other in plausible)
-        if not suspect.significant and fit is not None and allowed:
-            if _degenerate(fit, current):
-                marked.append(suspect)
-                continue
+        if not (suspect.significant or fit is None or refused or _degenerate(fit, current)):
             for other in accepted:
                 clearly = fit.raw_error_pct < (1.0 - TIE_TOLERANCE) * other.raw_error_pct
                 before, after = other.block_errors_pct, fit.block_errors_pct

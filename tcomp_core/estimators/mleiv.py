@@ -197,13 +197,17 @@ class _CrossRelation:
         projection: the whitened residual minus its projection on the whitened constant).
         The squared norm is J minimised over b.
         """
-        whitened, constant = self.whiten(log_tau, np.stack((self.residual(log_tau), self._ones)))
+        whitened, constant = self._whitened_with_constant(log_tau)
         return whitened - constant * ((constant @ whitened) / (constant @ constant))
 
     def offset(self, log_tau: NDArray[np.float64]) -> float:
         """The best offset b of :meth:`projected`: tc1's reading minus tc2's, degrees C."""
-        whitened, constant = self.whiten(log_tau, np.stack((self.residual(log_tau), self._ones)))
+        whitened, constant = self._whitened_with_constant(log_tau)
         return float((constant @ whitened) / (constant @ constant))
+
+    def _whitened_with_constant(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
+        """L⁻¹ e and L⁻¹ 1 at once, shape (2, M)."""
+        return self.whiten(log_tau, np.stack((self.residual(log_tau), self._ones)))
 
     @functools.cached_property
     def _ones(self) -> NDArray[np.float64]:
