@@ -49,6 +49,7 @@ from tcomp_core.simulate_effects import simulate_effect
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_diagnose
+import campaign_draws
 
 #: Share of the record left out at each end of the comparison (start-up transients).
 EDGE = 0.05
@@ -57,33 +58,48 @@ GOAL_MEDIAN, GOAL_WORST = 3.0, 1.0 / 1.1
 
 
 def scores(
-    record: Record, gas: np.ndarray, cutoff_hz: float, held: np.ndarray | None
+    record: Record, gas: np.ndarray, cutoff_hz: float | None, held: np.ndarray | None
 ) -> tuple[float, float]:
     """e_Tg (%) and mean offset (degrees C) of a gas series (element k over [t_k, t_k+1)).
 
     The truth is ``held`` (the gas averaged over each interval) when the simulator gives it,
-    else the reference read half a sample on.
+    else the reference read half a sample on. Both are low-passed at ``cutoff_hz`` (the signal
+    band); None compares the full band.
     """
-    sos = signal.butter(EVAL_FILTER_ORDER, cutoff_hz, output="sos", fs=1.0 / record.dt)
     truth = held if held is not None else fractional_shift(record.ref, 0.5)[0]
     n = record.ref.size
     keep = np.zeros(n, dtype=bool)
     keep[int(EDGE * n) : n - int(EDGE * n)] = True
     keep &= np.isfinite(truth)
-    reference = signal.sosfiltfilt(sos, np.where(np.isfinite(truth), truth, record.ref))
-    smoothed = signal.sosfiltfilt(sos, gas)
+    reference = np.where(np.isfinite(truth), truth, record.ref)
+    smoothed = np.asarray(gas, dtype=np.float64)
+    if cutoff_hz is not None:
+        sos = signal.butter(EVAL_FILTER_ORDER, cutoff_hz, output="sos", fs=1.0 / record.dt)
+        reference = signal.sosfiltfilt(sos, reference)
+        smoothed = signal.sosfiltfilt(sos, smoothed)
     error = 100.0 * math.sqrt(np.mean((smoothed[keep] - reference[keep]) ** 2))
     return error / float(np.std(reference[keep])), float(np.mean(gas[keep] - truth[keep]))
 
 
-def compare(record: Record, held: np.ndarray | None) -> dict:
-    """Verdict, e_Tg and offset of the four reconstructions of one record."""
+def compare(
+    record: Record, held: np.ndarray | None, full_band: bool = False, causal_too: bool = True
+) -> dict:
+    """Verdict, e_Tg and offset of the four reconstructions of one record.
+
+    With ``full_band`` the smoother's e_Tg is also given unfiltered (``smoother_*_full``);
+    without ``causal_too`` only the smoother's reconstructions are made.
+    """
     started = time.perf_counter()
     diagnosis = diagnose(record)
     output = output_model_from_diagnosis(diagnosis, origin_s=float(record.time[0]))
     base = diagnosis.base
-    row = {"verdict": diagnosis.verdict, "output": output.name()}
-    for causal in (False, True):
+    row = {
+        "verdict": diagnosis.verdict,
+        "found": [e for e in diagnosis.final.effects if e not in diagnosis.expected_physics],
+        "output": output.name(),
+        "tau": [base.tau1, base.tau2, diagnosis.final.tau1, diagnosis.final.tau2],
+    }
+    for causal in (False, True) if causal_too else (False,):
         key = "causal" if causal else "smoother"
         first = fuse(record.tc1, record.tc2, record.dt, base.tau1, base.tau2, causal=causal)
         extended = compensate(
@@ -95,6 +111,9 @@ def compare(record: Record, held: np.ndarray | None) -> dict:
         row[f"{key}_final"], row[f"{key}_final_offset"] = scores(
             record, extended.gas, diagnosis.eval_cutoff_hz, held
         )
+        if full_band and not causal:
+            row[f"{key}_first_full"] = scores(record, first.gas, None, held)[0]
+            row[f"{key}_final_full"] = scores(record, extended.gas, None, held)[0]
     row["seconds"] = time.perf_counter() - started
     return row
 
@@ -181,6 +200,131 @@ def stream_cost() -> None:
             print(f"{name:<16}{reconstruction:>16}{cost:>14.2f}{cost / base:>15.2f}", flush=True)
 
 
+def campaign_row(index: int) -> dict:
+    """Simulate, diagnose and score draw ``index`` of the campaign (one JSON-ready row)."""
+    item = campaign_draws.draw(index)
+    row: dict = {"index": index, "label": item.label, "truth": list(item.effects)}
+    row["forms"] = item.forms
+    try:
+        record, truth = campaign_draws.simulate(item)
+        row |= compare(record, None, full_band=True, causal_too=False)
+    except Exception as exc:  # a failure is a result of the campaign, not its end
+        row["error"] = f"{type(exc).__name__}: {exc}"
+        return row
+    row["tau_truth"] = [truth["tau1"], truth["tau2"]]
+    row["tau_base_err_pct"] = campaign_draws.tau_errors_pct(truth, *row["tau"][:2])
+    row["tau_final_err_pct"] = campaign_draws.tau_errors_pct(truth, *row["tau"][2:])
+    return row
+
+
+def _single_threaded() -> None:
+    import os
+
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[name] = "1"
+
+
+def run_campaign(count: int, start: int, jobs: int, out: Path) -> list[dict]:
+    """Rows of draws ``start`` .. ``start + count - 1``, ``jobs`` at a time, appended to ``out``.
+
+    Draws already in ``out`` are not run again (a cut campaign resumes).
+    """
+    import json
+    from multiprocessing import get_context
+
+    done: dict[int, dict] = {}
+    if out.exists():
+        for line in out.read_text().splitlines():
+            row = json.loads(line)
+            done[row["index"]] = row
+    todo = [i for i in range(start, start + count) if i not in done]
+    with out.open("a") as sink, get_context("fork").Pool(jobs, _single_threaded) as pool:
+        for row in pool.imap_unordered(campaign_row, todo):
+            sink.write(json.dumps(row) + "\n")
+            sink.flush()
+            done[row["index"]] = row
+            _print_draw(row)
+    return [done[i] for i in range(start, start + count)]
+
+
+def _print_draw(row: dict) -> None:
+    if "error" in row:
+        print(f"{row['index']:>4} {row['label'][:70]:<70} failed: {row['error']}", flush=True)
+        return
+    found = "+".join(row["found"]) or "none"
+    print(
+        f"{row['index']:>4} {row['label'][:70]:<70} {found[:24]:>24}"
+        f"{row['smoother_first']:>9.2f} ->{row['smoother_final']:>8.2f}"
+        f"{row['smoother_first_full']:>9.2f} ->{row['smoother_final_full']:>8.2f}"
+        f"{row['tau_final_err_pct'][0]:>+8.1f}{row['tau_final_err_pct'][1]:>+8.1f}"
+        f"{row['seconds']:>7.1f}",
+        flush=True,
+    )
+
+
+def _quantiles(values: list[float]) -> str:
+    finite = np.abs(np.asarray([v for v in values if math.isfinite(v)]))
+    if finite.size == 0:
+        return "-"
+    q50, q90, q100 = np.percentile(finite, (50, 90, 100))
+    return f"{q50:.1f} / {q90:.1f} / {q100:.1f}"
+
+
+def summarise_campaign(rows: list[dict]) -> None:
+    """Confusion matrix, τ error quantiles, gas first order against compensated, goals."""
+    failed = [row for row in rows if "error" in row]
+    rows = [row for row in rows if "error" not in row]
+    print(f"\n{len(rows)} draws scored, {len(failed)} failed")
+    for row in failed:
+        print(f"  failed: draw {row['index']} {row['label']}: {row['error']}")
+    single = [row for row in rows if len(row["truth"]) == 1]
+    clean = [row for row in rows if not row["truth"]]
+    pairs = [row for row in rows if len(row["truth"]) == 2]
+    print("\nconfusion (single-effect and clean draws; columns: verdict)")
+    verdicts = sorted({row["verdict"] for row in single + clean})
+    print(f"{'truth':<14}{'n':>4}" + "".join(f"{v[:11]:>12}" for v in verdicts))
+    by_truth: dict[str, list[dict]] = defaultdict(list)
+    for row in clean + single:
+        by_truth[row["truth"][0] if row["truth"] else "none"].append(row)
+    for truth, group in sorted(by_truth.items()):
+        counts = [sum(row["verdict"] == v for row in group) for v in verdicts]
+        print(f"{truth:<14}{len(group):>4}" + "".join(f"{c:>12}" for c in counts))
+    right = sum(row["truth"][0] in row["found"] and len(row["found"]) == 1 for row in single)
+    named = sum(row["truth"][0] == row["verdict"] for row in single)
+    alarms = sum(bool(row["found"]) for row in clean)
+    pair_right = sum(set(row["truth"]) <= set(row["found"]) for row in pairs)
+    pair_one = sum(bool(set(row["truth"]) & set(row["found"])) for row in pairs)
+    print(
+        f"single effects named right {named}/{len(single)} (found alone {right}); clean draws "
+        f"with a false alarm {alarms}/{len(clean)}; pairs: both found {pair_right}/{len(pairs)}, "
+        f"at least one {pair_one}/{len(pairs)}"
+    )
+    print("\n|tau error| %, 50th / 90th / 100th percentile")
+    for label, group in (("clean", clean), ("single", single), ("pairs", pairs)):
+        base = [_quantiles([r["tau_base_err_pct"][i] for r in group]) for i in (0, 1)]
+        final = [_quantiles([r["tau_final_err_pct"][i] for r in group]) for i in (0, 1)]
+        print(
+            f"  {label:<8} first order tau1 {base[0]}, tau2 {base[1]}; "
+            f"final tau1 {final[0]}, tau2 {final[1]}"
+        )
+    print("\ngas e_Tg against the truth, first order -> compensated")
+    print(f"{'':<22}{'worse (>1.1x, >0.1 pt)':>24}{'median fall, effect >= 1 %':>30}")
+    for (first, final), name in (
+        (("smoother_first", "smoother_final"), "signal band"),
+        (("smoother_first_full", "smoother_final_full"), "full band"),
+    ):
+        worse = [r for r in rows if campaign_draws.materially_worse(r[first], r[final])]
+        effect_rows = [r for r in rows if r["truth"] and r[first] >= 1.0]
+        falls = [r[first] / r[final] if r[final] > 0 else math.inf for r in effect_rows]
+        median = statistics.median(falls) if falls else math.nan
+        print(f"{name:<22}{len(worse):>24}{median:>26.2f}x ({len(falls)})")
+        for r in worse:
+            print(
+                f"    worse: draw {r['index']} {r['label']}: {r[first]:.2f} -> {r[final]:.2f} "
+                f"({r['output']})"
+            )
+
+
 def _ratio(row: dict, key: str) -> float:
     final = row[f"{key}_final"]
     return row[f"{key}_first"] / final if final > 0 else math.inf
@@ -190,9 +334,24 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true", help="one signal, one record per row")
     parser.add_argument("--stream", action="store_true", help="time the online compensator")
+    parser.add_argument(
+        "--campaign", type=int, metavar="N", help="run N seeded random draws (issue 24)"
+    )
+    parser.add_argument("--start", type=int, default=0, help="first draw of the campaign")
+    parser.add_argument("--jobs", type=int, default=2, help="draws run at once")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("out/bench_compensate/campaign.jsonl"),
+        help="JSON lines of the campaign's rows (a rerun skips the draws already there)",
+    )
     args = parser.parse_args()
     if args.stream:
         stream_cost()
+        return
+    if args.campaign is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        summarise_campaign(run_campaign(args.campaign, args.start, args.jobs, args.out))
         return
     print(
         f"{'record':<48}{'verdict':>13}  {'smoother e_Tg % first -> final':>31}"
