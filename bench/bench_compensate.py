@@ -33,6 +33,7 @@ import statistics
 import sys
 import time
 from collections import defaultdict
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -82,23 +83,41 @@ def scores(
 
 
 def compare(
-    record: Record, held: np.ndarray | None, full_band: bool = False, causal_too: bool = True
+    record: Record,
+    held: np.ndarray | None,
+    full_band: bool = False,
+    causal_too: bool = True,
+    ungated_too: bool = False,
 ) -> dict:
     """Verdict, e_Tg and offset of the four reconstructions of one record.
 
     With ``full_band`` the smoother's e_Tg is also given unfiltered (``smoother_*_full``);
-    without ``causal_too`` only the smoother's reconstructions are made.
+    without ``causal_too`` only the smoother's reconstructions are made; ``ungated_too`` adds
+    the smoother's gas of the final fit applied without the identification rule
+    (``smoother_ungated``, the behaviour before it).
     """
     started = time.perf_counter()
     diagnosis = diagnose(record)
     output = output_model_from_diagnosis(diagnosis, origin_s=float(record.time[0]))
     base = diagnosis.base
+    found = diagnosis.final.identification
     row = {
         "verdict": diagnosis.verdict,
         "found": [e for e in diagnosis.final.effects if e not in diagnosis.expected_physics],
         "output": output.name(),
+        "pieces": [piece.summary() for piece in output.pieces],
+        "band_c": None if found is None else found.band_c,
+        "change_c": None if found is None else found.change_c,
         "tau": [base.tau1, base.tau2, diagnosis.final.tau1, diagnosis.final.tau2],
     }
+    if ungated_too:
+        # The output model as it was before the identification rule: the same fit, unchecked.
+        unchecked = replace(diagnosis, final=replace(diagnosis.final, identification=None))
+        ungated = output_model_from_diagnosis(unchecked, origin_s=float(record.time[0]))
+        row["ungated_output"] = ungated.name()
+        gas = compensate(ungated, record.time, record.tc1, record.tc2, record.dt).gas
+        row["smoother_ungated"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]
+        row["smoother_ungated_full"] = scores(record, gas, None, held)[0]
     for causal in (False, True) if causal_too else (False,):
         key = "causal" if causal else "smoother"
         first = fuse(record.tc1, record.tc2, record.dt, base.tau1, base.tau2, causal=causal)
@@ -207,7 +226,7 @@ def campaign_row(index: int) -> dict:
     row["forms"] = item.forms
     try:
         record, truth = campaign_draws.simulate(item)
-        row |= compare(record, None, full_band=True, causal_too=False)
+        row |= compare(record, None, full_band=True, causal_too=False, ungated_too=True)
     except Exception as exc:  # a failure is a result of the campaign, not its end
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
@@ -308,16 +327,18 @@ def summarise_campaign(rows: list[dict]) -> None:
             f"final tau1 {final[0]}, tau2 {final[1]}"
         )
     print("\ngas e_Tg against the truth, first order -> compensated")
-    print(f"{'':<22}{'worse (>1.1x, >0.1 pt)':>24}{'median fall, effect >= 1 %':>30}")
+    print(f"{'':<24}{'worse (>1.1x, >0.1 pt)':>24}{'median fall, effect >= 1 %':>30}")
     for (first, final), name in (
         (("smoother_first", "smoother_final"), "signal band"),
         (("smoother_first_full", "smoother_final_full"), "full band"),
+        (("smoother_first", "smoother_ungated"), "signal band, unchecked"),
+        (("smoother_first_full", "smoother_ungated_full"), "full band, unchecked"),
     ):
         worse = [r for r in rows if campaign_draws.materially_worse(r[first], r[final])]
         effect_rows = [r for r in rows if r["truth"] and r[first] >= 1.0]
         falls = [r[first] / r[final] if r[final] > 0 else math.inf for r in effect_rows]
         median = statistics.median(falls) if falls else math.nan
-        print(f"{name:<22}{len(worse):>24}{median:>26.2f}x ({len(falls)})")
+        print(f"{name:<24}{len(worse):>24}{median:>26.2f}x ({len(falls)})")
         for r in worse:
             print(
                 f"    worse: draw {r['index']} {r['label']}: {r[first]:.2f} -> {r[final]:.2f} "

@@ -22,7 +22,13 @@ saying how the reconstruction treats it:
     only over the fitted record, a film temperature that needs the gas ahead).
 
 These are the "never worse" rules: no piece the data cannot fix moves from first order
-without a stated prior, and every output says which rule each effect followed.
+without a stated prior, and every output says which rule each effect followed. Above them, a
+fit is not trusted with the gas at all (every piece ``first order``, on the first-order model's
+τ) when it is no physical sensor (:meth:`~tcomp_core.effects.Model.implausible`), when a
+parameter of an applied effect is not pinned down by the data (singular, on a bound of its
+physical range, or confounded with τ), or when the 95 % band its parameters' uncertainty puts on
+the gas is as wide as the change it makes to the gas
+(:mod:`tcomp_core.diagnose.identification`).
 """
 
 from __future__ import annotations
@@ -41,6 +47,8 @@ from ..effects.chain import SensorChain
 
 if TYPE_CHECKING:
     from ..diagnose import Diagnosis
+    from ..diagnose.identification import Identification
+    from ..diagnose.result import ModelFit
     from ..io import Record
 
 __all__ = [
@@ -115,6 +123,9 @@ class OutputModel:
         identifiability).
     at_bound : tuple of str
         Parameters of the fit that ended on a bound of their physical range.
+    identification : Identification or None
+        Whether the data pin down the fit's effect parameters and its change to the gas
+        (:mod:`tcomp_core.diagnose.identification`); None when not checked.
     """
 
     effects: tuple[str, ...]
@@ -128,6 +139,7 @@ class OutputModel:
     band_hz: float = math.nan
     notes: tuple[str, ...] = field(default=())
     at_bound: tuple[str, ...] = field(default=())
+    identification: Identification | None = None
 
     @property
     def tau1(self) -> float:
@@ -218,6 +230,9 @@ class OutputModel:
             "error_pct": _finite(self.error_pct),
             "base_error_pct": _finite(self.base_error_pct),
             "notes": list(self.notes),
+            "identification": (
+                None if self.identification is None else self.identification.summary()
+            ),
         }
 
     def describe(self, causal_stream: bool = False) -> list[str]:
@@ -225,6 +240,13 @@ class OutputModel:
         pieces = self.stream_pieces() if causal_stream else self.pieces
         lines = [f"output model: {self.name(causal_stream)}"]
         lines += [f"  {piece.effect}: {piece.handling} ({piece.reason})" for piece in pieces]
+        if self.identification is not None and self.identification.checks:
+            found = self.identification
+            lines.append(
+                f"  identified: gas band +-{found.band_c:.3g} degC rms (95 %) against a change "
+                f"of {found.change_c:.3g} degC rms"
+            )
+            lines += [f"    {check.describe()}" for check in found.checks]
         return lines
 
 
@@ -294,21 +316,15 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
     final = diagnosis.final
     expected = set(diagnosis.expected_physics)
     base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
-    implausible = Model(tuple(final.effects), dict(final.params)).implausible(
-        base_taus, diagnosis.context.dt
-    )
-    if implausible:  # a degenerate fit is never compensated: everything stays first order
-        pieces = tuple(
-            Piece(effect, "first order", f"the fit is no physical sensor: {implausible}")
-            for effect in final.effects
-        )
-    else:
-        pieces = tuple(
-            _piece(effect, effect in expected, final.intervals) for effect in final.effects
-        )
+    params = dict(final.params)
+    pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
+    refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt)
+    if refusal:  # not trusted with the gas: every piece first order, on first order's tau
+        pieces = tuple(Piece(effect, "first order", refusal) for effect in final.effects)
+        params |= {"tau1": base_taus[0], "tau2": base_taus[1]}
     return OutputModel(
         effects=tuple(final.effects),
-        params=dict(final.params),
+        params=params,
         context=diagnosis.context,
         pieces=pieces,
         error_pct=float(final.error_pct),
@@ -318,7 +334,35 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         band_hz=float(diagnosis.eval_cutoff_hz),
         notes=tuple(diagnosis.identifiability),
         at_bound=tuple(final.at_bound),
+        identification=final.identification,
     )
+
+
+def _refusal(
+    final: ModelFit, pieces: tuple[Piece, ...], base_taus: tuple[float, float], dt: float
+) -> str:
+    """Why a fit may not make the gas ('' when it may).
+
+    It may not when it is no physical sensor, when a parameter of an applied effect is not
+    pinned down by the data, or when its change to the gas is within its own uncertainty.
+    """
+    implausible = Model(tuple(final.effects), dict(final.params)).implausible(base_taus, dt)
+    if implausible:
+        return f"the fit is no physical sensor: {implausible}"
+    found = final.identification
+    applied = tuple(piece.effect for piece in pieces if piece.handling != "first order")
+    if found is None or not applied:
+        return ""
+    unpinned = found.unpinned(applied)
+    if unpinned:
+        listed = "; ".join(f"{check.name} {check.reason}" for check in unpinned)
+        return f"not pinned down by the data ({listed}): first order is what they identify"
+    if found.band_exceeds_change:
+        return (
+            f"the parameters' 95 % band on the gas (+-{found.band_c:.3g} degC rms) is as wide "
+            f"as the change the model makes to it ({found.change_c:.3g} degC rms)"
+        )
+    return ""
 
 
 def parse_compensate_effects(text: str) -> tuple[str, ...] | None:

@@ -30,9 +30,10 @@ from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
+from .identification import identify
 from .prepare import PreparedData
 from .result import ModelFit
-from .uncertainty import parameter_uncertainty, parameters_at_bound
+from .uncertainty import parameter_covariance, parameter_uncertainty, parameters_at_bound
 
 __all__ = ["Evaluator", "heldout_error_percent"]
 
@@ -195,9 +196,22 @@ class Evaluator:
         chosen = Model(fit.effects, fit.params)
         held = frozenset(n for e in chosen.instances for n in e.output_error_params)
         model = chosen.fit(*self._fit_inputs, hold=held)
-        intervals, at_bound = parameter_uncertainty(model, *self._fit_inputs)
+        covariance = parameter_covariance(model, *self._fit_inputs)
         _, predicted = self._free_run(model)
         gas1, gas2 = model.reconstruct(*self.readings, self.context)
+        identification = None
+        base_taus = self.context.base_taus_s
+        if model.effects and base_taus is not None:
+            identification = identify(
+                model,
+                covariance,
+                base_taus,
+                self.readings,
+                self.context,
+                self.lowpass,
+                self.scored_mask(model)[:-1],
+                level_free="calibration" in model.effects,
+            )
         return replace(
             fit,
             params=dict(model.params),
@@ -206,8 +220,9 @@ class Evaluator:
             predicted=predicted,
             gas1=_pad(gas1),
             gas2=_pad(gas2),
-            intervals=intervals,
-            at_bound=at_bound,
+            intervals=covariance.intervals(),
+            at_bound=covariance.at_bound,
+            identification=identification,
         )
 
     def scored_mask(self, model: Model) -> NDArray[np.bool_]:

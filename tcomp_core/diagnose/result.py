@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..effects import FitContext
 from .residuals import FailureAnalysis
+
+if TYPE_CHECKING:
+    from .identification import Identification
 
 __all__ = ["Diagnosis", "ModelFit", "Suspect", "diagnosis_to_dict"]
 
@@ -54,6 +57,9 @@ class ModelFit:
     at_bound : tuple of str
         Parameters the fit left on a bound of their physical range: the fit wanted more than
         physics allows, so the effect is not significant.
+    identification : Identification or None
+        Whether the data pin down the effects' parameters and the change they make to the gas
+        (:mod:`tcomp_core.diagnose.identification`); set on the final model only.
     """
 
     effects: tuple[str, ...]
@@ -71,6 +77,7 @@ class ModelFit:
     n_params: int
     intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
     at_bound: tuple[str, ...] = ()
+    identification: Identification | None = None
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary: effects, tau1, tau2, error_pct and the parameters."""
@@ -87,6 +94,11 @@ class ModelFit:
                 name: [_finite(low), _finite(high)] for name, (low, high) in self.intervals.items()
             },
             "at_bound": list(self.at_bound),
+            **(
+                {"identification": self.identification.summary()}
+                if self.identification is not None
+                else {}
+            ),
         }
 
 

@@ -20,6 +20,7 @@ constants, so their intervals are asymmetric in seconds), clipped to the paramet
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,7 +29,13 @@ from scipy import ndimage
 from ..effects import FitContext, Model
 from ..effects.model import LeastSquaresProblem
 
-__all__ = ["Z95", "parameter_uncertainty", "parameters_at_bound"]
+__all__ = [
+    "Z95",
+    "ParameterCovariance",
+    "parameter_covariance",
+    "parameter_uncertainty",
+    "parameters_at_bound",
+]
 
 #: Two-sided 95 % quantile of the normal distribution.
 Z95 = 1.959963984540054
@@ -82,6 +89,86 @@ def parameters_at_bound(
     return _at_bound(problem, np.clip(problem.pack(model.params), problem.lower, problem.upper))
 
 
+@dataclass(frozen=True)
+class ParameterCovariance:
+    """The sandwich covariance of a fit's searched parameters, in the search coordinates.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The searched parameters, in the order of ``x``.
+    x : ndarray, shape (P,)
+        The estimate in the search coordinates (log of every time constant).
+    matrix : ndarray, shape (P, P) or None
+        Its covariance; None when the fit's Jacobian is singular (the data do not determine
+        the parameters).
+    lower, upper : ndarray, shape (P,)
+        Bounds of ``x``.
+    at_bound : tuple of str
+        Parameters within :data:`AT_BOUND_SHARE` of their range from a physical bound.
+    """
+
+    names: tuple[str, ...]
+    x: NDArray[np.float64]
+    matrix: NDArray[np.float64] | None
+    lower: NDArray[np.float64]
+    upper: NDArray[np.float64]
+    at_bound: tuple[str, ...]
+
+    def intervals(self) -> dict[str, tuple[float, float]]:
+        """95 % interval of every parameter in its unit, clipped to its bounds.
+
+        (nan, nan) for every parameter when the covariance is singular.
+        """
+        if self.matrix is None:
+            return {name: (math.nan, math.nan) for name in self.names}
+        half = Z95 * np.sqrt(np.clip(np.diag(self.matrix), 0.0, None))
+        low = np.clip(self.x - half, self.lower, self.upper)
+        high = np.clip(self.x + half, self.lower, self.upper)
+        intervals = {}
+        for name, lo, hi in zip(self.names, low, high, strict=True):
+            log_scale = name.startswith("tau")
+            intervals[name] = (math.exp(lo), math.exp(hi)) if log_scale else (float(lo), float(hi))
+        return intervals
+
+    def correlation(self, first: str, second: str) -> float:
+        """Correlation of two parameters' estimates (NaN when unknown)."""
+        if self.matrix is None or first not in self.names or second not in self.names:
+            return math.nan
+        i, j = self.names.index(first), self.names.index(second)
+        scale = math.sqrt(self.matrix[i, i] * self.matrix[j, j])
+        return float(self.matrix[i, j] / scale) if scale > 0.0 else math.nan
+
+
+def parameter_covariance(
+    model: Model,
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    context: FitContext,
+    rows: NDArray[np.bool_] | None = None,
+) -> ParameterCovariance:
+    """The covariance of a fitted model's searched parameters (the sandwich above).
+
+    Arguments as :func:`parameter_uncertainty`'s.
+    """
+    problem = model.problem(tc1, tc2, context, rows)
+    x = np.clip(problem.pack(model.params), problem.lower, problem.upper)
+    names = tuple(spec.name for spec in problem.specs)
+    at_bound = _at_bound(problem, x)
+    residuals = problem.residuals(x)
+    jacobian = problem.jacobian(x)
+    n = problem.n_rows
+    meat = _meat(jacobian[:n], residuals[:n]) + jacobian[n:].T @ jacobian[n:]
+    bread = jacobian.T @ jacobian
+    try:
+        inverse = np.linalg.inv(bread)
+    except np.linalg.LinAlgError:
+        return ParameterCovariance(names, x, None, problem.lower, problem.upper, at_bound)
+    matrix = inverse @ meat @ inverse
+    finite = matrix if np.all(np.isfinite(matrix)) else None
+    return ParameterCovariance(names, x, finite, problem.lower, problem.upper, at_bound)
+
+
 def parameter_uncertainty(
     model: Model,
     tc1: NDArray[np.float64],
@@ -110,26 +197,5 @@ def parameter_uncertainty(
         Parameters within :data:`AT_BOUND_SHARE` of their range from a physical bound
         (:attr:`~tcomp_core.effects.base.ParamSpec.physical`).
     """
-    problem = model.problem(tc1, tc2, context, rows)
-    x = np.clip(problem.pack(model.params), problem.lower, problem.upper)
-    at_bound = _at_bound(problem, x)
-    residuals = problem.residuals(x)
-    jacobian = problem.jacobian(x)
-    n = problem.n_rows
-    meat = _meat(jacobian[:n], residuals[:n]) + jacobian[n:].T @ jacobian[n:]
-    bread = jacobian.T @ jacobian
-    try:
-        inverse = np.linalg.inv(bread)
-    except np.linalg.LinAlgError:
-        return {spec.name: (math.nan, math.nan) for spec in problem.specs}, at_bound
-    covariance = inverse @ meat @ inverse
-    half = Z95 * np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-    low = np.clip(x - half, problem.lower, problem.upper)
-    high = np.clip(x + half, problem.lower, problem.upper)
-    intervals = {}
-    for spec, lo, hi in zip(problem.specs, low, high, strict=True):
-        log_scale = spec.name.startswith("tau")
-        intervals[spec.name] = (
-            (math.exp(lo), math.exp(hi)) if log_scale else (float(lo), float(hi))
-        )
-    return intervals, at_bound
+    covariance = parameter_covariance(model, tc1, tc2, context, rows)
+    return covariance.intervals(), covariance.at_bound

@@ -523,6 +523,18 @@ def fit_signal_models(
     return SignalModelFits(fitted, failures, model)
 
 
+#: Most samples the likelihood of a signal model is evaluated on. Its few hyper-parameters
+#: are fixed long before (the likelihood's curvature grows with N), while each evaluation
+#: refilters the stretch: the smoother of a 160 000-sample record took 34 s, 16 s with it.
+MAX_LIKELIHOOD_SAMPLES = 2**16
+
+
+def _likelihood_stretch(n: int) -> slice:
+    """The middle :data:`MAX_LIKELIHOOD_SAMPLES` of ``n`` samples (all of a shorter record)."""
+    start = max(0, (n - MAX_LIKELIHOOD_SAMPLES) // 2)
+    return slice(start, start + MAX_LIKELIHOOD_SAMPLES)
+
+
 def _prepare(
     first: NDArray[np.float64],
     second: NDArray[np.float64],
@@ -536,9 +548,10 @@ def _prepare(
     s1, s2 = _noise_sigmas(first, second, (dt, tau1, tau2), sigma1, sigma2)
     base = FusionModel(kind="random-walk", dt=dt, tau1=tau1, tau2=tau2, sigma1=s1, sigma2=s2, q=1)
     level = float(np.mean(first))
+    likelihood = _likelihood_stretch(first.size)
     return _Fitting(
         base=base,
-        y=np.vstack((first - level, second - level)),
+        y=np.vstack((first[likelihood] - level, second[likelihood] - level)),
         scale=_gas_variance(first, second, base),
         freq_hz=_dominant_frequency(first, second, base),
     )
