@@ -211,18 +211,19 @@ def test_radiation_is_corrected_in_level_not_only_in_dynamics():
     assert math.isfinite(offset)
 
 
-def _diagnosis_with(effects, intervals, expected=()):
-    """The parts of a Diagnosis that output_model_from_diagnosis reads."""
+def _diagnosis_with(effects, intervals, expected=(), identification=None, taus=(0.02, 0.1)):
+    """The parts of a Diagnosis that output_model_from_diagnosis reads (base tau 0.02, 0.1 s)."""
     from types import SimpleNamespace
 
     fit = SimpleNamespace(
         effects=effects,
-        params={"tau1": 0.02, "tau2": 0.1},
+        params={"tau1": taus[0], "tau2": taus[1]},
         intervals=intervals,
         error_pct=1.0,
-        tau1=0.02,
-        tau2=0.1,
+        tau1=taus[0],
+        tau2=taus[1],
         at_bound=[],
+        identification=identification,
     )
     return SimpleNamespace(
         source="test",
@@ -255,3 +256,85 @@ def test_the_rules_say_how_each_effect_is_treated():
         assert model.level_reference().applied() == (
             effects if handling in ("compensated", "prior") else ()
         )
+
+
+def _check(name, reason=""):
+    from tcomp_core.diagnose.identification import ParameterCheck
+
+    return ParameterCheck(
+        effect="delay",
+        name=name,
+        value=0.004,
+        low=0.003,
+        high=0.005,
+        tau_correlation=0.5,
+        at_bound=False,
+        gas_band_c=0.1,
+        reason=reason,
+    )
+
+
+@pytest.mark.parametrize(
+    ("checks", "band_c", "change_c", "applied", "reason"),
+    [
+        ((), 0.2, 3.0, True, ""),
+        (("confounded with tau (|correlation| 0.995)",), 0.2, 3.0, False, "not pinned down"),
+        (("on a bound of its physical range",), 0.2, 3.0, False, "not pinned down"),
+        ((), 3.0, 2.0, False, "95 % band on the gas"),
+        ((), math.nan, 2.0, False, "95 % band on the gas"),
+    ],
+)
+def test_a_fit_is_applied_only_when_the_data_pin_it_down(
+    checks, band_c, change_c, applied, reason
+):
+    from tcomp_core.compensation import output_model_from_diagnosis
+    from tcomp_core.diagnose.identification import Identification
+
+    found = Identification(checks=(_check("delay_s", *checks),), band_c=band_c, change_c=change_c)
+    # The fit moved tau from the first-order 0.02 / 0.1 s: a refused fit must not keep it.
+    diagnosis = _diagnosis_with(("delay",), {}, identification=found, taus=(0.03, 0.12))
+    model = output_model_from_diagnosis(diagnosis)
+    assert (model.applied() == ("delay",)) is applied
+    assert reason in model.pieces[0].reason
+    assert (model.tau1, model.tau2) == ((0.03, 0.12) if applied else (0.02, 0.1))
+    assert model.summary()["identification"]["gas_band_c"] == (
+        band_c if math.isfinite(band_c) else None
+    )
+    if not applied:
+        from tcomp_core.online.diagnosis import judge_output
+
+        assert model.pieces[0].handling == "first order"
+        assert any("identified: gas band" in line for line in model.describe())
+        # The node publishes why in output_model_note.
+        assert reason in judge_output(model, 1000)
+
+
+def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied():
+    """The identification measured on real fits: a strong delay is applied, a calibration
+    far below its own uncertainty on the gas is not (its parameters are determined all the
+    same)."""
+    from tcomp_core.compensation import output_model_from_diagnosis
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.io import Record
+
+    def fitted(effect, params):
+        sim = simulate_effect(
+            effect, "multisine", duration=10.0, noise_percent=2.0, seed=11, params=params
+        )
+        record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="t", dt=sim.dt)
+        diagnosis = fit_effects(record, (effect,))
+        return diagnosis, output_model_from_diagnosis(diagnosis)
+
+    diagnosis, model = fitted("delay", {"delay_s": 0.006})
+    found = diagnosis.final.identification
+    assert found is not None and [c.name for c in found.checks] == ["delay_s"]
+    assert found.checks[0].pinned and found.checks[0].low < 0.006 < found.checks[0].high
+    assert found.band_c < 0.2 * found.change_c
+    assert model.applied() == ("delay",)
+    diagnosis, model = fitted("calibration", {"gain": 1.0005, "offset_c": 0.0})
+    found = diagnosis.final.identification
+    assert {c.name for c in found.checks} == {"gain", "offset_c"}
+    assert found.band_exceeds_change
+    assert model.applied() == ()
+    assert "95 % band on the gas" in model.pieces[0].reason
+    assert (model.tau1, model.tau2) == (diagnosis.base.tau1, diagnosis.base.tau2)

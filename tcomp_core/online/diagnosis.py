@@ -76,7 +76,10 @@ def _judgement(model: OutputModel, pairs: int) -> tuple[str, str]:
     error, base = model.error_pct, model.base_error_pct
     where = f"fit of {pairs} pairs: held-out error {error:.3g} % ({base:.3g} % first order)"
     if not model.applied(causal_stream=True):
-        return f"no effect to compensate; {where}", where
+        # Why each effect stays first order (not trusted with the gas, ordinary size, ...).
+        reasons = sorted({p.reason for p in model.stream_pieces() if p.handling == "first order"})
+        why = f" ({'; '.join(reasons)})" if reasons else ""
+        return f"no effect to compensate{why}; {where}", where
     if model.at_bound:
         return f"parameters on a bound ({', '.join(model.at_bound)}); {where}", where
     if not error <= (1.0 - MIN_ERROR_FALL) * base:

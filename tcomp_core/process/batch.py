@@ -124,7 +124,11 @@ def format_summary(outcomes: Sequence[Outcome]) -> str:
     for outcome in outcomes:
         output = outcome.result.output_model if outcome.result is not None else {}
         if output:
-            pieces = "; ".join(f"{p['effect']}: {p['handling']}" for p in output["pieces"])
+            pieces = "; ".join(
+                f"{p['effect']}: {p['handling']}"
+                + (f" ({p['reason']})" if p["handling"] == "first order" else "")
+                for p in output["pieces"]
+            )
             lines.append(
                 f"{outcome.source.name}: gas published with {output['name']} "
                 f"(fitted in {outcome.result.output_model_seconds:.1f} s"  # type: ignore[union-attr]
