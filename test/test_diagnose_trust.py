@@ -284,18 +284,27 @@ def test_a_strong_property_effect_is_found_with_its_exponent():
     assert found.base.error_pct >= 5.0 * found.final.error_pct
 
 
-def test_a_calibration_below_the_fits_resolution_is_not_material():
+@pytest.mark.parametrize(
+    ("level_c", "gain", "offset_c", "material"),
+    [
+        (500.0, 0.9999, -0.046, False),  # below the fit's resolution
+        (50.0, 1.0075, -2.5, False),  # the edge of IEC 60584 class 2: the sensors users own
+        (700.0, 0.9925, 2.5, False),  # class 2 at an exhaust level: 0.75 % of 700 degC added
+        (50.0, 1.0, -4.0, True),  # beyond class 2 in offset
+        (50.0, 1.02, 0.0, True),  # beyond class 2 in gain
+        (700.0, 1.0, 12.0, True),  # beyond 2.5 degC + 0.75 % of the level, with the margin
+    ],
+)
+def test_a_calibration_within_class_2_is_not_material(level_c, gain, offset_c, material):
     class _Context:
-        level_mean_c = 500.0
+        level_mean_c = level_c
 
     class _Evaluator:
         context = _Context()
 
     taus = {"tau1": 0.05, "tau2": 0.2}
-    tiny = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": 0.9999, "offset_c": -0.046})
-    real = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": 1.0, "offset_c": -0.5})
-    assert not is_material("calibration", tiny, _Evaluator())
-    assert is_material("calibration", real, _Evaluator())
+    fit = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": gain, "offset_c": offset_c})
+    assert is_material("calibration", fit, _Evaluator()) is material
 
 
 def test_quantisation_is_recognised_from_the_steps():
