@@ -269,28 +269,33 @@ def _check(name, reason=""):
         high=0.005,
         tau_correlation=0.5,
         at_bound=False,
-        gas_band_c=0.1,
         reason=reason,
     )
 
 
 @pytest.mark.parametrize(
-    ("checks", "band_c", "change_c", "applied", "reason"),
+    ("checks", "band_c", "change_c", "evidence_c", "applied", "reason"),
     [
-        ((), 0.2, 3.0, True, ""),
-        (("confounded with tau (|correlation| 0.995)",), 0.2, 3.0, False, "not pinned down"),
-        (("on a bound of its physical range",), 0.2, 3.0, False, "not pinned down"),
-        ((), 3.0, 2.0, False, "95 % band on the gas"),
-        ((), math.nan, 2.0, False, "95 % band on the gas"),
+        ((), 0.2, 3.0, 2.0, True, ""),
+        (("the data do not determine it (singular fit)",), 0.2, 3.0, 2.0, False, "not pinned"),
+        (("on a bound of its physical range",), 0.2, 3.0, 2.0, False, "not pinned down"),
+        ((), 3.0, 2.0, 2.0, False, "95 % band on the gas"),
+        ((), math.nan, 2.0, 2.0, False, "95 % band on the gas"),
+        ((), 0.2, 3.0, 0.5, False, "rest on the model's form"),
     ],
 )
 def test_a_fit_is_applied_only_when_the_data_pin_it_down(
-    checks, band_c, change_c, applied, reason
+    checks, band_c, change_c, evidence_c, applied, reason
 ):
     from tcomp_core.compensation import output_model_from_diagnosis
     from tcomp_core.diagnose.identification import Identification
 
-    found = Identification(checks=(_check("delay_s", *checks),), band_c=band_c, change_c=change_c)
+    found = Identification(
+        checks=(_check("delay_s", *checks),),
+        band_c=band_c,
+        change_c=change_c,
+        evidence_c=evidence_c,
+    )
     # The fit moved tau from the first-order 0.02 / 0.1 s: a refused fit must not keep it.
     diagnosis = _diagnosis_with(("delay",), {}, identification=found, taus=(0.03, 0.12))
     model = output_model_from_diagnosis(diagnosis)

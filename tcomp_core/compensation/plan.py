@@ -25,9 +25,10 @@ These are the "never worse" rules: no piece the data cannot fix moves from first
 without a stated prior, and every output says which rule each effect followed. Above them, a
 fit is not trusted with the gas at all (every piece ``first order``, on the first-order model's
 τ) when it is no physical sensor (:meth:`~tcomp_core.effects.Model.implausible`), when a
-parameter of an applied effect is not pinned down by the data (singular, on a bound of its
-physical range, or confounded with τ), or when the 95 % band its parameters' uncertainty puts on
-the gas is as wide as the change it makes to the gas
+parameter of an applied effect is not pinned down by the data (singular, or on a bound of its
+physical range), when the change it makes to the gas is several times the two sensors'
+disagreement (the only evidence of what first order lacks), or when the 95 % band on the gas
+(refits leaving out one stretch of the record at a time) is as wide as that change
 (:mod:`tcomp_core.diagnose.identification`).
 """
 
@@ -244,7 +245,8 @@ class OutputModel:
             found = self.identification
             lines.append(
                 f"  identified: gas band +-{found.band_c:.3g} degC rms (95 %) against a change "
-                f"of {found.change_c:.3g} degC rms"
+                f"of {found.change_c:.3g} degC rms; the sensors' first-order disagreement "
+                f"{found.evidence_c:.3g} degC rms"
             )
             lines += [f"    {check.describe()}" for check in found.checks]
         return lines
@@ -357,10 +359,19 @@ def _refusal(
     if unpinned:
         listed = "; ".join(f"{check.name} {check.reason}" for check in unpinned)
         return f"not pinned down by the data ({listed}): first order is what they identify"
-    if found.band_exceeds_change:
+    if found.extrapolates:
         return (
-            f"the parameters' 95 % band on the gas (+-{found.band_c:.3g} degC rms) is as wide "
-            f"as the change the model makes to it ({found.change_c:.3g} degC rms)"
+            f"the model changes the gas by {found.change_c:.3g} degC rms, "
+            f"{found.change_c / found.evidence_c:.3g} times the {found.evidence_c:.3g} degC by "
+            f"which the two sensors' first-order gas disagree: the correction would rest on the "
+            f"model's form, not on the data"
+        )
+    if found.band_exceeds_change:
+        why = f"; {found.band_note}" if found.band_note else ""
+        return (
+            f"the 95 % band on the gas (+-{found.band_c:.3g} degC rms, refits leaving out one "
+            f"stretch of the record at a time) is as wide as the change the model makes to it "
+            f"({found.change_c:.3g} degC rms){why}"
         )
     return ""
 

@@ -210,6 +210,7 @@ class Evaluator:
                 self.context,
                 self.lowpass,
                 self.scored_mask(model)[:-1],
+                lambda rows: model.fit(*self._fit_inputs, rows, held),
                 level_free="calibration" in model.effects,
             )
         return replace(
