@@ -336,6 +336,15 @@ def test_each_effect_bounds_how_far_tau_moves_and_conduction_its_conductance_rat
     # The issue's worst case: conduction with tau1 27x the first-order estimate.
     far = Model(("conduction",), {"tau1": 0.45, "tau2": 1.2, "tau_leg": 0.5, "tau_p": 2.0})
     assert "tau1 = 0.45 s is 27.3x" in far.implausible(base)
+    # Lagging supports make the first-order tau many times the wire's own: a conduction fit
+    # may bring tau down from it without limit (a fit at a seventh of it was refused before).
+    slowed = (7.2 * 0.0303, 4.7 * 0.1606)
+    near = {"tau1": 0.0303, "tau2": 0.1606, "tau_leg": 0.271, "tau_p": 2.46}
+    assert Model(("conduction",), near).implausible(slowed) == ""
+    assert "at most 13.3x" in Model(("conduction",), near).implausible((0.0303 / 14, 0.1606))
+    assert "at least 1/5" in Model(
+        ("property",), {"tau1": 0.0303, "tau2": 0.1606, "property_exponent": 0.5}
+    ).implausible(slowed)
     # Short legs at the fit's own tau: the supports' conductance dominates the junction's.
     legs = {"tau1": 0.0165, "tau2": 0.08, "tau_leg": 0.02 * 0.08, "tau_p": 1.0}
     assert fin_kappa(math.sqrt(0.02)) > MAX_KAPPA

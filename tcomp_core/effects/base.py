@@ -136,6 +136,9 @@ class Effect:
     #: degenerate (:meth:`tcomp_core.effects.Model.implausible`). Effects that bias the
     #: first-order τ strongly raise it and say why in their class docstring.
     max_tau_factor: ClassVar[float] = 5.0
+    #: How far τ may fall below the first-order estimate when that differs (a factor; None:
+    #: :attr:`max_tau_factor`), for an effect that biases the first-order τ one way only.
+    max_tau_fall: ClassVar[float | None] = None
 
     def implausible(self, params: Mapping[str, float]) -> str:
         """Why these parameters are no physical sensor, by this effect's own bounds ('' if none).

@@ -135,9 +135,18 @@ class Conduction(Effect):
     over 90 % of the junction's steady heat balance. A junction whose conductance to its
     supports is tens or hundreds of times its convective conductance reads the supports, not
     the gas: it is not a thermocouple in a flow, and such a fit has only traded τ for legs.
+
+    How far τ may move from the first-order estimate is one-sided. Supports that lag the gas
+    add a slow path the first-order fit absorbs into τ, which can then be many times the
+    wire's own (it tends to τp as the supports take over): τ may fall below it without limit
+    (:attr:`max_tau_fall`). Supports at a steady temperature make the junction answer
+    faster, τ/(1 + κ), so the first-order τ is at most 1 + :data:`MAX_KAPPA` times too short:
+    τ may rise above it by that factor at most (:attr:`max_tau_factor`).
     """
 
     name = "conduction"
+    max_tau_factor = 1.0 + MAX_KAPPA
+    max_tau_fall = math.inf
     summary = "conduction along the legs to supports that lag the gas (tau_leg, tau_p)"
     # Where the fin model is not exact (a junction bead; little slow excitation) the
     # cross-relation criterion trades a misfit for noise gain along τ ∝ 1/mL², towards legs

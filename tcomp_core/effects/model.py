@@ -284,22 +284,31 @@ class Model:
         """Why this model's parameters are no physical sensor ('' when they are plausible).
 
         A τ moved from the first-order estimate ``base_taus_s`` (None: not checked) by more
-        than the loosest :attr:`~.base.Effect.max_tau_factor` of the model's effects, or an
+        than the loosest :attr:`~.base.Effect.max_tau_factor` of the model's effects (down:
+        :attr:`~.base.Effect.max_tau_fall` where an effect sets it), or an
         effect's own bound (:meth:`~.base.Effect.implausible`). A first-order τ below
         ``collapsed_below_s`` (s; the sample interval) gives no scale: the base model found no
         lag to measure there (a missing delay collapses τ1 so), and that τ is not compared.
         """
         if base_taus_s is not None and self.instances:
-            allowed = max(effect.max_tau_factor for effect in self.instances)
+            rise = max(effect.max_tau_factor for effect in self.instances)
+            fall = max(
+                effect.max_tau_factor if effect.max_tau_fall is None else effect.max_tau_fall
+                for effect in self.instances
+            )
             for index, base in enumerate(base_taus_s, start=1):
                 tau = self.params.get(f"tau{index}", math.nan)
                 if not (base > collapsed_below_s and base > 0.0 and tau > 0.0):
                     continue
-                factor = max(tau / base, base / tau)
-                if factor > allowed:
+                if tau / base > rise:
                     return (
-                        f"tau{index} = {tau:.3g} s is {factor:.3g}x the first-order {base:.3g} s "
-                        f"(at most {allowed:g}x with {'+'.join(self.effects)})"
+                        f"tau{index} = {tau:.3g} s is {tau / base:.3g}x the first-order "
+                        f"{base:.3g} s (at most {rise:.3g}x with {'+'.join(self.effects)})"
+                    )
+                if base / tau > fall:
+                    return (
+                        f"tau{index} = {tau:.3g} s is 1/{base / tau:.3g} of the first-order "
+                        f"{base:.3g} s (at least 1/{fall:.3g} with {'+'.join(self.effects)})"
                     )
         for effect in self.instances:
             reason = effect.implausible(self.params)
