@@ -316,6 +316,11 @@ def test_reconstruct_and_process_compensate_with_the_effects_asked_for(tmp_path,
     assert errors["e_tg_pct"] < 0.5 * errors["e_tg_first_order_pct"]
     gas = read_record(tmp_path / "gas.csv", columns=("tc1", "tc2", "gas"))
     assert gas.tc1.size == sim.tc1.size - 1
+    # Each sample with its variance: the Kalman estimate's plus the fit's own band.
+    found = document["output_model"]["identification"]
+    assert 0.0 < found["gas_band_c"] < found["gas_change_c"]
+    variance = read_record(tmp_path / "gas.csv", columns=("tc1", "tc2", "gas_variance")).ref
+    assert np.all(variance >= (found["gas_band_c"] / 1.959963984540054) ** 2)
     # tcomp process publishes the same model's causal reconstruction.
     out = tmp_path / "processed.csv"
     assert main(["process", str(data), "-o", str(out), "--effects", "delay", "--no-diagnose"]) == 0

@@ -665,3 +665,39 @@ def test_diagnostic_array_encoder_refuses_what_the_message_cannot_hold():
         encode_diagnostic_array(-1, [])
     with pytest.raises(ValueError, match="level"):
         encode_diagnostic_array(0, [DiagnosticStatusFields(256, "", "", "", {})])
+
+
+def test_the_gas_variance_is_written_as_a_column_and_as_the_message_field(tmp_path, arrays):
+    from rosbags.highlevel import AnyReader
+
+    time, tc1, tc2, ref = arrays
+    variance = np.linspace(0.01, 0.02, time.size)
+    csv_path = write_series(tmp_path / "v.csv", time, tc1, tc2, gas=ref, gas_variance=variance)
+    assert csv_path.read_text().splitlines()[0] == "time,tc1,tc2,gas,gas_variance"
+    read = read_csv(csv_path, columns=("tc1", "tc2", "gas_variance"))
+    np.testing.assert_array_equal(read.ref, variance)
+    for name, inputs in (
+        ("plain", None),
+        (
+            "copy",
+            read_record(write_bag(tmp_path / "in", time, {TC1: tc1, TC2: tc2}, start_ns=EPOCH_NS)),
+        ),
+    ):
+        bag = write_series(
+            tmp_path / name,
+            time if inputs is None else inputs.time,
+            tc1,
+            tc2,
+            gas=ref,
+            gas_variance=variance,
+            inputs=inputs,
+        )
+        with AnyReader([bag]) as reader:
+            gas = [c for c in reader.connections if c.topic == GAS_TOPIC]
+            fields = [
+                reader.deserialize(raw, c.msgtype).variance
+                for c, _, raw in reader.messages(connections=gas)
+            ]
+        np.testing.assert_array_equal(fields, variance)
+    with pytest.raises(DataError, match="variance without a gas"):
+        write_series(tmp_path / "w.csv", time, tc1, tc2, gas_variance=variance)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -192,7 +193,7 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
     # The last element is a prediction no sample observes: leave it out as Eq. (7) does.
     count = record.tc1.size - 1
     gas = fused.gas[:count]
-    written, ref = _write_gas(args, record, gas)
+    written, ref = _write_gas(args, record, gas, fused.std[:count] ** 2)
     print(f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples")
     if ref is not None:
         error = reconstruction_error_percent(ref, gas)
@@ -270,11 +271,13 @@ def _run_compensated(
             causal=causal,
         )
         gas, shift = result.gas[:count], result.level_shift_c
+        variance = result.std[:count] ** 2 + model_band_variance(model)
         print(
             f"{args.reconstruction}: signal model {result.fusion.kind}; median std of the "
-            f"estimate {np.median(result.std):.4g} degC"
+            f"estimate {np.median(np.sqrt(variance)):.4g} degC (the output model's band "
+            f"included)"
         )
-    written, ref = _write_gas(args, record, gas)
+    written, ref = _write_gas(args, record, gas, variance)
     print(f"wrote {written}: gas temperature at {gas.size} of {record.tc1.size} samples")
     errors: dict[str, float] = {}
     if ref is not None:
@@ -380,10 +383,27 @@ def _first_order_gas(
     ).gas
 
 
+def model_band_variance(model: OutputModel) -> float:
+    """Variance the output model's own uncertainty adds to its gas, (degrees C)**2.
+
+    The rms 95 % jackknife band of the applied fit (:mod:`tcomp_core.diagnose.identification`)
+    as a variance; 0 when nothing is applied or the band is unknown.
+    """
+    from ..diagnose.uncertainty import Z95
+
+    found = model.identification
+    if not model.applied() or found is None or not math.isfinite(found.band_c):
+        return 0.0
+    return (found.band_c / Z95) ** 2
+
+
 def _write_gas(
-    args: argparse.Namespace, record: Record, gas: NDArray[np.float64]
+    args: argparse.Namespace,
+    record: Record,
+    gas: NDArray[np.float64],
+    variance: NDArray[np.float64] | None = None,
 ) -> tuple[Path, NDArray[np.float64] | None]:
-    """Write the record's first ``gas.size`` samples with ``gas`` to ``--output``.
+    """Write the record's first ``gas.size`` samples with ``gas`` (and its variance).
 
     Returns the path written and the matching part of the reference (None without one).
     """
@@ -398,6 +418,7 @@ def _write_gas(
         record.tc2[:count],
         ref,
         gas=gas,
+        gas_variance=variance,
         overwrite=args.force,
         inputs=record,
     )

@@ -241,7 +241,7 @@ def write_bag(
     series: Mapping[str, ArrayLike],
     *,
     frame_id: str = "tc",
-    variance: Mapping[str, float] | None = None,
+    variance: Mapping[str, ArrayLike] | None = None,
     overwrite: bool = False,
     compress: bool = False,
     start_ns: int = 0,
@@ -265,8 +265,9 @@ def write_bag(
         too, so that bad bags can be made for tests; :func:`read_bag` refuses them).
     frame_id : str
         ``header.frame_id`` of every message.
-    variance : mapping of topic to float, optional
-        ``variance`` field per topic, (degrees C)**2; 0 (unknown) by default.
+    variance : mapping of topic to float or array_like of shape (N,), optional
+        ``variance`` field per topic (one value, or one per sample), (degrees C)**2; 0
+        (unknown) by default.
     overwrite : bool
         Replace an existing bag (a directory holding ``metadata.yaml``, or a file).
     compress : bool
@@ -310,7 +311,14 @@ def write_bag(
             f"{path}: sample {index} is stamped {int(stamps[index])} ns; stamps must lie in "
             f"[0, {MAX_STAMP_NS}] ns (builtin_interfaces/msg/Time)"
         )
-    variances = {topic: float((variance or {}).get(topic, 0.0)) for topic in arrays}
+    given = variance or {}
+    try:
+        variances = {
+            topic: np.broadcast_to(np.asarray(given.get(topic, 0.0), np.float64), times.shape)
+            for topic in arrays
+        }
+    except ValueError as exc:
+        raise DataError(f"{path}: a variance does not match the {times.size} samples") from exc
     with atomic_output(path, overwrite, inputs, directory=True) as temporary:
         writer = McapBagWriter(temporary, compress=compress, name=path.name)
         try:
@@ -321,7 +329,9 @@ def write_bag(
             for start in range(0, stamps.size, WRITE_BLOCK):
                 part = slice(start, start + WRITE_BLOCK)
                 for topic, channel in channels.items():
-                    rows = encode(stamps[part], arrays[topic][part], variances[topic], frame_id)
+                    rows = encode(
+                        stamps[part], arrays[topic][part], variances[topic][part], frame_id
+                    )
                     writer.write_rows(channel, stamps[part], rows)
             writer.close()
         except BaseException:
@@ -339,6 +349,7 @@ def write_bag_copy(
     frame_id: str = "",
     overwrite: bool = False,
     compress: bool = True,
+    gas_variance: ArrayLike | None = None,
 ) -> Path:
     """Copy a bag's Temperature topics unchanged and add a gas temperature topic.
 
@@ -363,6 +374,8 @@ def write_bag_copy(
         Replace an existing bag.
     compress : bool
         zstd-compress the chunks.
+    gas_variance : array_like, shape (M,), optional
+        The gas messages' ``variance`` field, (degrees C)**2; 0 (unknown) without it.
 
     Returns
     -------
@@ -380,7 +393,10 @@ def write_bag_copy(
     values = np.asarray(gas, dtype=np.float64)
     if stamps.shape != values.shape or stamps.ndim != 1:
         raise DataError(f"{path}: gas has shape {values.shape}, its stamps {stamps.shape}")
-    rows = encode(stamps, values, 0.0, frame_id)
+    variance = np.zeros_like(values) if gas_variance is None else np.asarray(gas_variance, float)
+    if variance.shape != values.shape:
+        raise DataError(f"{path}: gas variance has shape {variance.shape}, gas {values.shape}")
+    rows = encode(stamps, values, variance, frame_id)
     inputs = [*origin.files, *(file.parent for file in origin.files)]
     with atomic_output(path, overwrite, inputs, directory=True) as temporary:
         _copy_with_gas(temporary, path.name, origin, stamps, rows, compress)

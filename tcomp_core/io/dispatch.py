@@ -63,6 +63,7 @@ def write_series(
     ref: ArrayLike | None = None,
     *,
     gas: ArrayLike | None = None,
+    gas_variance: ArrayLike | None = None,
     overwrite: bool = False,
     inputs: Record | None = None,
 ) -> Path:
@@ -80,6 +81,9 @@ def write_series(
         Reference temperature, degrees C.
     gas : array_like, shape (N,), optional
         Reconstructed gas temperature, degrees C.
+    gas_variance : array_like, shape (N,), optional
+        Its variance, (degrees C)**2: CSV column ``gas_variance``, the gas messages'
+        ``variance`` field in a bag (0, "unknown", without it).
     overwrite : bool
         Replace an existing output.
     inputs : Record, optional
@@ -91,7 +95,7 @@ def write_series(
     Returns
     -------
     Path
-        ``path``. CSV columns: ``time,tc1,tc2[,ref][,gas]``. Bag topics:
+        ``path``. CSV columns: ``time,tc1,tc2[,ref][,gas[,gas_variance]]``. Bag topics:
         :data:`DEFAULT_TOPICS` (ref only if given) and :data:`GAS_TOPIC` for ``gas``.
 
     Raises
@@ -101,8 +105,12 @@ def write_series(
         ``time`` that is not a sample time of ``inputs``.
     """
     path = Path(path)
+    if gas is None and gas_variance is not None:
+        raise DataError(f"{path}: a gas variance without a gas")
     if is_csv(path):
         extra = {} if gas is None else {"gas": gas}
+        if gas_variance is not None:
+            extra["gas_variance"] = gas_variance
         return write_csv(path, time, tc1, tc2, ref, extra=extra, overwrite=overwrite)
     if inputs is not None and inputs.origin is not None and inputs.stamps_ns is not None:
         gas_stamps, values = np.empty(0, np.int64), np.empty(0)
@@ -116,13 +124,17 @@ def write_series(
             values,
             frame_id=inputs.frame_id,
             overwrite=overwrite,
+            gas_variance=gas_variance,
         )
     series: dict[str, ArrayLike] = {DEFAULT_TOPICS[0]: tc1, DEFAULT_TOPICS[1]: tc2}
     if ref is not None and DEFAULT_TOPICS[2] is not None:
         series[DEFAULT_TOPICS[2]] = ref
+    variance: dict[str, ArrayLike] = {}
     if gas is not None:
         series[GAS_TOPIC] = gas
-    return write_bag(path, time, series, overwrite=overwrite, compress=True)
+        if gas_variance is not None:
+            variance[GAS_TOPIC] = gas_variance
+    return write_bag(path, time, series, variance=variance, overwrite=overwrite, compress=True)
 
 
 def _input_stamps(path: Path, times: NDArray[np.float64], inputs: Record) -> NDArray[np.int64]:

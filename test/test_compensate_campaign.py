@@ -1,0 +1,58 @@
+"""A fast subset of ``bench/bench_compensate.py --campaign`` (issue 24).
+
+The campaign's draws are a pure function of their index (``bench/campaign_draws.py``); these
+are three of the cheapest (0.5 kHz): a clean pair within IEC 60584 class 2, a calibration
+beyond it, and a delay with radiation to a constant wall. Each is diagnosed as a user runs it
+and compensated with the output model; the gas is scored against the simulator's truth.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+
+import bench_compensate
+import campaign_draws
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize("index", [41, 38, 68])
+def test_a_campaign_draw_is_never_compensated_materially_worse(index):
+    row = bench_compensate.campaign_row(index)
+    assert "error" not in row, row.get("error")
+    first, final = row["smoother_first"], row["smoother_final"]
+    assert not campaign_draws.materially_worse(first, final), (row["label"], first, final)
+    first, final = row["smoother_first_full"], row["smoother_final_full"]
+    assert not campaign_draws.materially_worse(first, final), (row["label"], first, final)
+    if not row["truth"]:
+        assert row["found"] == [], (row["label"], row["found"])
+    # Whatever is applied is pinned down and physical: a refused piece says why.
+    for piece in row["pieces"]:
+        assert piece["reason"], piece
+
+
+def test_campaign_draws_are_a_function_of_their_index():
+    first, again = campaign_draws.draw(7), campaign_draws.draw(7)
+    assert first.label == again.label and first.rig == again.rig
+    labels = {campaign_draws.draw(i).label for i in range(40)}
+    assert len(labels) == 40
+    effects = {e for i in range(40) for e in campaign_draws.draw(i).effects}
+    assert effects == set(campaign_draws.CAMPAIGN_EFFECTS)
+    # Every draw carries a sensor difference; within class 2 unless calibration is drawn.
+    for i in range(40):
+        item = campaign_draws.draw(i)
+        _, gain, offset = item.rig.calibration
+        inside = abs(gain - 1) <= campaign_draws.CLASS2_GAIN and abs(offset) <= 2.5
+        assert inside != ("calibration" in item.effects), item.label
+
+
+def test_materially_worse_needs_both_the_ratio_and_the_points():
+    assert campaign_draws.materially_worse(1.0, 1.2)
+    assert not campaign_draws.materially_worse(1.0, 1.09)  # within 1.1x
+    assert not campaign_draws.materially_worse(0.5, 0.59)  # 1.18x but 0.09 point
+    assert campaign_draws.materially_worse(1.0, float("nan"))
