@@ -266,6 +266,15 @@ def run_campaign(count: int, start: int, jobs: int, out: Path) -> list[dict]:
     return [done[i] for i in range(start, start + count)]
 
 
+def read_campaign(out: Path, count: int, start: int) -> list[dict]:
+    """The rows of draws ``start`` .. ``start + count - 1`` found in ``out``, by index."""
+    import json
+
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    wanted = range(start, start + count)
+    return sorted((row for row in rows if row["index"] in wanted), key=lambda row: row["index"])
+
+
 def _print_draw(row: dict) -> None:
     if "error" in row:
         print(f"{row['index']:>4} {row['label'][:70]:<70} failed: {row['error']}", flush=True)
@@ -359,6 +368,11 @@ def main() -> None:
         "--campaign", type=int, metavar="N", help="run N seeded random draws (issue 24)"
     )
     parser.add_argument("--start", type=int, default=0, help="first draw of the campaign")
+    parser.add_argument(
+        "--summarise",
+        action="store_true",
+        help="only summarise the campaign's draws already in --out (none is run)",
+    )
     parser.add_argument("--jobs", type=int, default=2, help="draws run at once")
     parser.add_argument(
         "--out",
@@ -372,6 +386,9 @@ def main() -> None:
         return
     if args.campaign is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
+        if args.summarise:
+            summarise_campaign(read_campaign(args.out, args.campaign, args.start))
+            return
         summarise_campaign(run_campaign(args.campaign, args.start, args.jobs, args.out))
         return
     print(

@@ -12,7 +12,7 @@ from detailed_physics import Rig, simulate_rig
 
 from tcomp_core.diagnose import diagnose, fit_effects
 from tcomp_core.diagnose.quantisation import detect_quantisation, in_band_variance
-from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_material, is_significant
+from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_significant
 from tcomp_core.diagnose.result import ModelFit
 from tcomp_core.effects import EFFECT_NAMES, make_context
 from tcomp_core.effects.radiation import Radiation, max_radiation_ratio
@@ -296,15 +296,18 @@ def test_a_strong_property_effect_is_found_with_its_exponent():
     ],
 )
 def test_a_calibration_within_class_2_is_not_material(level_c, gain, offset_c, material):
-    class _Context:
-        level_mean_c = level_c
+    from tcomp_core.effects.base import Evidence
+    from tcomp_core.effects.calibration import Calibration
 
-    class _Evaluator:
-        context = _Context()
-
-    taus = {"tau1": 0.05, "tau2": 0.2}
-    fit = _fit(0.1, 0.2, 0.1, [0.2], {**taus, "gain": gain, "offset_c": offset_c})
-    assert is_material("calibration", fit, _Evaluator()) is material
+    evidence = Evidence(
+        level_mean_c=level_c,
+        record_dt=1e-3,
+        dt=1e-3,
+        readings=(np.zeros(4), np.zeros(4)),
+        base_taus=(0.05, 0.2),
+    )
+    params = {"tau1": 0.05, "tau2": 0.2, "gain": gain, "offset_c": offset_c}
+    assert Calibration().material(params, evidence) is material
 
 
 def test_quantisation_is_recognised_from_the_steps():

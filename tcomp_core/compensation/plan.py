@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..choices import parse_effect_list
-from ..effects import FitContext, Model
+from ..effects import EFFECTS, FitContext, Model
 from ..effects.chain import SensorChain
 
 if TYPE_CHECKING:
@@ -264,38 +264,8 @@ def _piece(effect: str, expected: bool, intervals: Mapping[str, tuple[float, flo
             "ordinary size (the sensors' expected physics, below materiality): compensating "
             "would trade a small known bias for the fit's uncertainty",
         )
-    if effect == "delay":
-        return Piece(
-            effect,
-            "prior",
-            "only the delay between the sensors is seen: the gas is put on tc1's clock",
-        )
-    if effect == "calibration":
-        return Piece(
-            effect,
-            "dynamics",
-            "which sensor's calibration is right cannot be seen: the dynamics use both on tc1's "
-            "scale, the level stays first order's",
-        )
-    if effect == "radiation":
-        lows = [intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
-        if max(lows) <= 0.0:
-            return Piece(
-                effect,
-                "dynamics",
-                "neither wire's radiative ratio rho is told from 0 (95 % intervals reach 0): "
-                "the data do not fix the radiation level, which stays first order's",
-            )
-        return Piece(effect, "compensated", "the steady radiation error of each wire is removed")
-    if effect == "conduction":
-        return Piece(
-            effect,
-            "compensated",
-            "fin legs: the common leg time L^2/alpha set by the free-run error, not a prior",
-        )
-    if effect == "noise_ratio":
-        return Piece(effect, "compensated", "the noise levels are measured from the readings")
-    return Piece(effect, "compensated", "its stage of the sensor chain is inverted")
+    handling, reason = EFFECTS[effect]().output_handling(intervals)
+    return Piece(effect, handling, reason)
 
 
 def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> OutputModel:

@@ -14,17 +14,10 @@ An effect is *significant* when its refit
   and after is at least :data:`MIN_BLOCK_T` standard errors above zero;
 * leaves every parameter of the effect inside its physical range (not on a bound: the fit
   wanted more than physics allows, e.g. radiation beyond emissivity 1);
-* is material (:func:`is_material`): a calibration difference beyond what two sensors of
-  IEC 60584 class 2 may differ by (gain off by more than :data:`CLASS2_GAIN`, or a difference
-  at the mean level of more than :data:`CLASS2_OFFSET_C` plus :data:`CLASS2_GAIN` of the level,
-  each with the margin :data:`CLASS2_MARGIN` for the fit's own resolution), a radiative
-  conductance of :data:`RADIATION_MIN_RHO` on the wire that radiates more, an interference
-  line that one channel carries beyond what the other explains, a delay of at least
-  :data:`DELAY_MIN_SAMPLES` of a sample of the record (a delay fitted at zero is no delay: its
-  fall came from the restarts of τ that the delay's search makes). The record's own
-  sample, not the working rate's: the diagnosis decimates a 5 kHz record to a few hundred Hz,
-  and a delay of 2.5 raw samples, fitted by a fractional shift, is then a fraction of a
-  working sample, yet it is real and it moves τ and the gas.
+* is material (:func:`is_material`), by the effect's own rule (its ``material`` method and
+  docstring): a calibration difference beyond what two sensors of IEC 60584 class 2 may differ
+  by, a radiative conductance that matters, an interference line that one channel carries
+  beyond what the other explains, a delay of half a sample of the record or more.
   Rectification by the sensors' nonlinear physics (τ following the level) leaves the two
   sensors' means a few hundredths of a degree apart, which is no calibration error. A
   calibration or radiation that passes the statistical rules but is not material is still
@@ -70,10 +63,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
 
-from ..effects import Model
-from ..effects.base import KELVIN
-from ..effects.interference import HARMONICS, find_line
+from ..effects import EFFECTS, Model
+from ..effects.base import KELVIN, Evidence
 from ..effects.property import tau_swing
+from ..effects.radiation import MIN_RHO as RADIATION_MIN_RHO
 from ..errors import EstimationError, TcompError
 from .heldout import Evaluator
 from .residuals import level_errors
@@ -120,20 +113,6 @@ CURVATURE_T = 3.0
 #: Mean temperature below which radiation is not preferred to a tied calibration, degrees C
 #: (at 250 °C a fine wire's radiative conductance is ~1 % of its convective one).
 RADIATION_MIN_LEVEL_C = 250.0
-#: Least radiative/convective conductance of the slower sensor that counts as radiation.
-RADIATION_MIN_RHO = 0.01
-#: Calibration difference two sensors of IEC 60584 class 2 may show (issue 24: "±2.5 °C or
-#: 0.75 % between the two sensors"): the state of the sensors users own, fitted when it helps
-#: (it moves τ) but no finding. The relative gain, and the offset at the level (degrees C) to
-#: which 0.75 % of the level is added.
-CLASS2_GAIN = 0.0075
-CLASS2_OFFSET_C = 2.5
-#: A calibration counts beyond class 2 by this factor: the fit resolves a gain to about
-#: ±0.1 % and an offset to a few tenths of a degree, so a sensor pair at the edge of the class
-#: is not called miscalibrated by its fit's error.
-CLASS2_MARGIN = 1.25
-#: Least delay that counts, in samples of the record (not of the working rate).
-DELAY_MIN_SAMPLES = 0.5
 #: Least relative change of τ over the film temperature's range (5th to 95th percentile; the
 #: film is the mean of the fast sensor's reading and its reconstructed gas) at which a
 #: level-dependent τ is a finding (``property`` verdict) rather than the gas-property physics
@@ -437,31 +416,15 @@ def implausibility(fit: ModelFit, evaluator: Evaluator) -> str:
 
 
 def is_material(name: str, fit: ModelFit, evaluator: Evaluator) -> bool:
-    """Whether a fitted effect is large enough to be a finding (see the module notes)."""
-    p = fit.params
-    if name == "calibration":
-        level = evaluator.context.level_mean_c
-        at_mean = (p["gain"] - 1.0) * level + p["offset_c"]
-        tolerance = CLASS2_OFFSET_C + CLASS2_GAIN * abs(level)
-        return bool(
-            abs(p["gain"] - 1.0) > CLASS2_MARGIN * CLASS2_GAIN
-            or abs(at_mean) > CLASS2_MARGIN * tolerance
-        )
-    if name == "radiation":
-        return bool(max(p["rho1"], p["rho2"]) >= RADIATION_MIN_RHO)
-    if name == "delay":
-        record_dt = evaluator.data.dt / evaluator.data.decimation
-        return bool(abs(p["delay_s"]) >= DELAY_MIN_SAMPLES * record_dt)
-    if name == "interference":
-        # The line must be there: one channel carries it beyond what the other explains with
-        # the base model's τ (the candidate's own τ could make a gas harmonic look foreign).
-        channel = int(p["interference_channel"])
-        taus = evaluator.context.base_taus_s or (fit.tau1, fit.tau2)
-        line = find_line(*evaluator.readings, evaluator.data.dt, *taus, channel)
-        return line is not None and any(
-            abs(line[0] - h * p["interference_hz"]) <= max(1.0, 0.02 * line[0]) for h in HARMONICS
-        )
-    return True
+    """Whether a fitted effect is large enough to be a finding (the effect's own rule)."""
+    evidence = Evidence(
+        level_mean_c=evaluator.context.level_mean_c,
+        record_dt=evaluator.data.dt / evaluator.data.decimation,
+        dt=evaluator.data.dt,
+        readings=evaluator.readings,
+        base_taus=evaluator.context.base_taus_s or (fit.tau1, fit.tau2),
+    )
+    return EFFECTS[name]().material(fit.params, evidence)
 
 
 def is_expected_physics(suspect: Suspect, evaluator: Evaluator) -> bool:

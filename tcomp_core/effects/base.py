@@ -20,7 +20,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["KELVIN", "Effect", "FitContext", "ParamSpec"]
+__all__ = ["KELVIN", "Effect", "Evidence", "FitContext", "ParamSpec"]
 
 #: Offset between degrees Celsius and kelvin.
 KELVIN = 273.15
@@ -107,6 +107,31 @@ class FitContext:
         return float(self.time[-1] - self.time[0]) + self.dt
 
 
+@dataclass(frozen=True, kw_only=True)
+class Evidence:
+    """What an effect's materiality is judged on besides its parameters.
+
+    Attributes
+    ----------
+    level_mean_c : float
+        Mean temperature of the record, degrees C.
+    record_dt : float
+        The record's own sample interval, s (before the diagnosis decimates it).
+    dt : float
+        Sample interval of ``readings``, s.
+    readings : (ndarray, ndarray)
+        tc1, tc2 at ``dt``, degrees C, shape (N,) each.
+    base_taus : (float, float)
+        τ1, τ2 of the first-order model of the record, s.
+    """
+
+    level_mean_c: float
+    record_dt: float
+    dt: float
+    readings: tuple[NDArray[np.float64], NDArray[np.float64]]
+    base_taus: tuple[float, float]
+
+
 class Effect:
     """Base class of the effects; the hooks return the neutral value (no change)."""
 
@@ -139,6 +164,24 @@ class Effect:
     #: How far τ may fall below the first-order estimate when that differs (a factor; None:
     #: :attr:`max_tau_factor`), for an effect that biases the first-order τ one way only.
     max_tau_fall: ClassVar[float | None] = None
+
+    def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
+        """Whether a fit of this size is a finding rather than the sensors' ordinary state.
+
+        True by default; an effect with an ordinary size (a calibration within the sensors'
+        tolerance class, a radiative loss too small to matter, a delay under a sample) says
+        where it ends in its docstring.
+        """
+        return True
+
+    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+        """How a compensated gas treats this effect, and why (``compensated`` by default).
+
+        One of ``compensated``, ``prior`` (a stated convention fixes what the two signals
+        cannot), ``dynamics`` (undone for the dynamics, the level kept first order's);
+        ``intervals`` are the fit's 95 % intervals (:mod:`tcomp_core.compensation.plan`).
+        """
+        return "compensated", "its stage of the sensor chain is inverted"
 
     def implausible(self, params: Mapping[str, float]) -> str:
         """Why these parameters are no physical sensor, by this effect's own bounds ('' if none).

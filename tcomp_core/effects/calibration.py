@@ -13,12 +13,22 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from .base import Effect, FitContext, ParamSpec
+from .base import Effect, Evidence, FitContext, ParamSpec
 
-__all__ = ["Calibration"]
+__all__ = ["CLASS2_GAIN", "CLASS2_MARGIN", "CLASS2_OFFSET_C", "Calibration"]
 
 #: Largest relative gain error of one sensor against the other that counts as calibration.
 GAIN_LIMIT = 0.2
+#: Calibration difference two sensors of IEC 60584 class 2 may show (issue 24: "±2.5 °C or
+#: 0.75 % between the two sensors"): the state of the sensors users own, fitted when it helps
+#: (it moves τ) but no finding. The relative gain, and the offset at the level (degrees C) to
+#: which 0.75 % of the level is added.
+CLASS2_GAIN = 0.0075
+CLASS2_OFFSET_C = 2.5
+#: A calibration counts beyond class 2 by this factor: the fit resolves a gain to about
+#: ±0.1 % and an offset to a few tenths of a degree, so a sensor pair at the edge of the class
+#: is not called miscalibrated by its fit's error.
+CLASS2_MARGIN = 1.25
 
 
 class Calibration(Effect):
@@ -27,11 +37,35 @@ class Calibration(Effect):
     τ may move any distance from the first-order estimate (:attr:`max_tau_factor` infinite):
     the first-order model has no gain between the sensors and bends τ to explain one without
     limit (0.75 % of gain moved τ1 by +34 % on a slow drift).
+
+    Material (:meth:`material`) beyond what two sensors of IEC 60584 class 2 may differ by:
+    a gain off by more than :data:`CLASS2_GAIN`, or a difference at the mean level of more than
+    :data:`CLASS2_OFFSET_C` plus :data:`CLASS2_GAIN` of the level, each with the margin
+    :data:`CLASS2_MARGIN`. Within it the difference is the sensors' ordinary state.
+
+    Output (:meth:`output_handling`): ``dynamics``. Which sensor's calibration is right cannot
+    be seen, so the dynamics use both sensors on tc1's scale and the level stays first order's.
     """
 
     name = "calibration"
     max_tau_factor = math.inf
     summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
+
+    def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
+        level = evidence.level_mean_c
+        at_mean = (params["gain"] - 1.0) * level + params["offset_c"]
+        tolerance = CLASS2_OFFSET_C + CLASS2_GAIN * abs(level)
+        return bool(
+            abs(params["gain"] - 1.0) > CLASS2_MARGIN * CLASS2_GAIN
+            or abs(at_mean) > CLASS2_MARGIN * tolerance
+        )
+
+    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+        return (
+            "dynamics",
+            "which sensor's calibration is right cannot be seen: the dynamics use both on tc1's "
+            "scale, the level stays first order's",
+        )
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         # Physical bounds: a thermocouple whose gain is off by more than GAIN_LIMIT is broken,

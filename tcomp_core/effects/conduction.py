@@ -147,6 +147,13 @@ class Conduction(Effect):
     name = "conduction"
     max_tau_factor = 1.0 + MAX_KAPPA
     max_tau_fall = math.inf
+
+    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+        return (
+            "compensated",
+            "fin legs: the common leg time L^2/alpha set by the free-run error, not a prior",
+        )
+
     summary = "conduction along the legs to supports that lag the gas (tau_leg, tau_p)"
     # Where the fin model is not exact (a junction bead; little slow excitation) the
     # cross-relation criterion trades a misfit for noise gain along τ ∝ 1/mL², towards legs

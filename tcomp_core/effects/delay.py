@@ -16,10 +16,13 @@ from scipy import optimize
 
 from ..errors import TcompError
 from ..estimators.beta import beta_gtls
-from .base import Effect, FitContext, ParamSpec
+from .base import Effect, Evidence, FitContext, ParamSpec
 from .chain import fractional_shift
 
-__all__ = ["Delay"]
+__all__ = ["MIN_SAMPLES", "Delay"]
+
+#: Least delay that counts, in samples of the record (not of the diagnosis's working rate).
+MIN_SAMPLES = 0.5
 
 #: Trial delays of the closed-form scan, how many of its lowest local minima are refined, and
 #: how many of those start the search. The GTLS criterion is sharp around the true delay: a
@@ -40,11 +43,24 @@ class Delay(Effect):
     the base model absorbs a delay into τ2 − τ1, so a delay of a few samples collapses its τ1
     to a tenth of the truth, one longer than τ1 to its bound (9 ms on engine pulses put it at
     a 25th), and the delay brings it back.
+
+    Material (:meth:`material`) from :data:`MIN_SAMPLES` of a sample of the record: the
+    diagnosis decimates a 5 kHz record to a few hundred Hz, and a delay of 2.5 raw samples,
+    fitted by a fractional shift, is then a fraction of a working sample, yet it is real and it
+    moves τ and the gas (a delay fitted at zero is no delay: its fall came from the restarts of
+    τ that the delay's search makes). Output (:meth:`output_handling`): ``prior``, only the
+    delay between the sensors is seen, so the gas is put on tc1's clock.
     """
 
     name = "delay"
     summary = "tc2 sees the gas later than tc1 (delay_s)"
     max_tau_factor = math.inf
+
+    def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
+        return bool(abs(params["delay_s"]) >= MIN_SAMPLES * evidence.record_dt)
+
+    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+        return "prior", "only the delay between the sensors is seen: the gas is put on tc1's clock"
 
     def _bound(self, context: FitContext) -> float:
         return float(min(max(context.tau_scale_s, 20.0 * context.dt), context.duration_s / 10.0))

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
-from .base import Effect, FitContext, ParamSpec
+from .base import Effect, Evidence, FitContext, ParamSpec
 
 __all__ = ["HARMONICS", "Interference", "find_line", "interference_line"]
 
@@ -126,6 +126,10 @@ class Interference(Effect):
     τ may move any distance from the first-order estimate (:attr:`max_tau_factor` infinite):
     the line is a signal only one sensor carries, and the first-order fit bends τ to explain
     it without limit (a 1 °C mains line on a multisine put τ1 at 6.8× the truth).
+
+    Material (:meth:`material`) when the line is there: one channel carries it, at the fitted
+    frequency or one of its :data:`HARMONICS`, beyond what the other explains with the
+    first-order τ (the candidate's own τ could make a gas harmonic look foreign).
     """
 
     name = "interference"
@@ -136,6 +140,14 @@ class Interference(Effect):
         "amplitudes)"
     )
     setting_choices = ({"interference_channel": 2.0}, {"interference_channel": 1.0})
+
+    def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
+        channel = int(params["interference_channel"])
+        line = find_line(*evidence.readings, evidence.dt, *evidence.base_taus, channel)
+        return line is not None and any(
+            abs(line[0] - h * params["interference_hz"]) <= max(1.0, 0.02 * line[0])
+            for h in HARMONICS
+        )
 
     def __init__(self) -> None:
         self._cache: tuple[tuple[float, ...], NDArray[np.float64]] | None = None

@@ -21,6 +21,9 @@ class NoiseRatio(Effect):
     name = "noise_ratio"
     summary = "the sensors' noise variances differ (phi from the spectra)"
 
+    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+        return "compensated", "the noise levels are measured from the readings"
+
     def fixed(self, context: FitContext) -> dict[str, float]:
         return {"phi": context.phi_hat}
 

@@ -21,9 +21,13 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from .base import KELVIN, Effect, FitContext, ParamSpec
+from .base import KELVIN, Effect, Evidence, FitContext, ParamSpec
 
-__all__ = ["Radiation", "air_conductivity", "max_radiation_ratio"]
+__all__ = ["MIN_RHO", "Radiation", "air_conductivity", "max_radiation_ratio"]
+
+#: Least radiative/convective conductance of the wire that radiates more that counts as
+#: radiation (a loss below is too small to matter).
+MIN_RHO = 0.01
 
 #: Weight of the ρ2/ρ1 = (τ2/τ1)^⅓ prior, in units of the criterion per unit ρ.
 PRIOR_WEIGHT = 30.0
@@ -69,6 +73,11 @@ class Radiation(Effect):
     linearised, radiation is a relative gain and offset of the two sensors, which the
     first-order model explains by bending τ without limit (on hot engine pulses of the
     detailed simulator the first-order τ came out 5× the radiation fit's).
+
+    Material (:meth:`material`) from a radiative/convective conductance of
+    :data:`MIN_RHO` on the wire that radiates more. Output (:meth:`output_handling`): the
+    steady radiation error of each wire is removed, in level; when neither ρ is told from 0
+    (both 95 % intervals reach it) only the dynamics, the level staying first order's.
     """
 
     name = "radiation"
@@ -76,6 +85,19 @@ class Radiation(Effect):
     summary = (
         "radiation to the wall lowers the reading with the temperature level (rho1, rho2, wall)"
     )
+
+    def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
+        return bool(max(params["rho1"], params["rho2"]) >= MIN_RHO)
+
+    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+        lows = [intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
+        if max(lows) <= 0.0:
+            return (
+                "dynamics",
+                "neither wire's radiative ratio rho is told from 0 (95 % intervals reach 0): "
+                "the data do not fix the radiation level, which stays first order's",
+            )
+        return "compensated", "the steady radiation error of each wire is removed"
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         # Physical bounds: emissivity <= 1 with the weakest convection the base τ allows, and
