@@ -16,6 +16,19 @@ Records: the effect simulator (:mod:`tcomp_core.simulate_effects`, every effect 
 multisine and exhaust, K = 1 %) and the detailed simulator (``test/detailed_physics.py``, one
 record per condition and gas signal, ``bench_diagnose``'s grid).
 
+``--campaign N`` runs the seeded random campaign of issue 24 instead
+(``bench/campaign_draws.py``: the detailed simulator with 0–2 effects in two forms each,
+0.5–20 kHz, K 0.5–4 %, a class-2 sensor difference on every draw), two draws at a time
+(``--jobs``), one JSON line per draw in ``--out`` (a rerun skips the draws already there;
+``--summarise`` only prints the table of what is there). Per draw: the verdict and the effects
+found, τ errors of the first-order and the final model against the simulator's, and the
+smoother's gas against the truth, first order against compensated, in the signal band and the
+full band, with the output model and with the same fit applied unchecked (the behaviour before
+the identification rule). The summary: confusion of single effects, false alarms on clean
+draws, pairs found, τ error quantiles, the count of draws where compensation is materially
+worse (> 1.1× and > 0.1 point) and the median fall on effect draws whose first-order error is
+at least 1 %.
+
 ``--stream`` instead times the online compensator (the engine of the node and ``tcomp
 process``) on 10 s at 5 kHz handed over in 5 ms batches, first order against an output model
 (conduction, delay, radiation, interference), in the same run: the cost of compensating live.
@@ -23,6 +36,7 @@ process``) on 10 s at 5 kHz handed over in 5 ms batches, first order against an 
 Run::
 
     cd /work/main && PYTHONPATH=. .venv/bin/python bench/bench_compensate.py [--quick | --stream]
+    PYTHONPATH=. .venv/bin/python bench/bench_compensate.py --campaign 300 --jobs 2
 """
 
 from __future__ import annotations
@@ -317,15 +331,15 @@ def summarise_campaign(rows: list[dict]) -> None:
     for truth, group in sorted(by_truth.items()):
         counts = [sum(row["verdict"] == v for row in group) for v in verdicts]
         print(f"{truth:<14}{len(group):>4}" + "".join(f"{c:>12}" for c in counts))
-    right = sum(row["truth"][0] in row["found"] and len(row["found"]) == 1 for row in single)
+    right = sum(row["truth"][0] in row["found"] for row in single)
     named = sum(row["truth"][0] == row["verdict"] for row in single)
     alarms = sum(bool(row["found"]) for row in clean)
     pair_right = sum(set(row["truth"]) <= set(row["found"]) for row in pairs)
     pair_one = sum(bool(set(row["truth"]) & set(row["found"])) for row in pairs)
     print(
-        f"single effects named right {named}/{len(single)} (found alone {right}); clean draws "
-        f"with a false alarm {alarms}/{len(clean)}; pairs: both found {pair_right}/{len(pairs)}, "
-        f"at least one {pair_one}/{len(pairs)}"
+        f"single effects named right {named}/{len(single)} (among the findings {right}); "
+        f"clean draws with a false alarm {alarms}/{len(clean)}; pairs: both found "
+        f"{pair_right}/{len(pairs)}, at least one {pair_one}/{len(pairs)}"
     )
     print("\n|tau error| %, 50th / 90th / 100th percentile")
     for label, group in (("clean", clean), ("single", single), ("pairs", pairs)):
@@ -343,6 +357,7 @@ def summarise_campaign(rows: list[dict]) -> None:
         (("smoother_first", "smoother_ungated"), "signal band, unchecked"),
         (("smoother_first_full", "smoother_ungated_full"), "full band, unchecked"),
     ):
+        output = "ungated_output" if "ungated" in final else "output"
         worse = [r for r in rows if campaign_draws.materially_worse(r[first], r[final])]
         effect_rows = [r for r in rows if r["truth"] and r[first] >= 1.0]
         falls = [r[first] / r[final] if r[final] > 0 else math.inf for r in effect_rows]
@@ -351,7 +366,7 @@ def summarise_campaign(rows: list[dict]) -> None:
         for r in worse:
             print(
                 f"    worse: draw {r['index']} {r['label']}: {r[first]:.2f} -> {r[final]:.2f} "
-                f"({r['output']})"
+                f"({r[output]})"
             )
 
 

@@ -290,9 +290,10 @@ def test_a_strong_property_effect_is_found_with_its_exponent():
         (500.0, 0.9999, -0.046, False),  # below the fit's resolution
         (50.0, 1.0075, -2.5, False),  # the edge of IEC 60584 class 2: the sensors users own
         (700.0, 0.9925, 2.5, False),  # class 2 at an exhaust level: 0.75 % of 700 degC added
-        (50.0, 1.0, -4.0, True),  # beyond class 2 in offset
+        (50.0, 1.0, -6.5, True),  # beyond class 2 in offset, with the fit's resolution
         (50.0, 1.02, 0.0, True),  # beyond class 2 in gain
-        (700.0, 1.0, 12.0, True),  # beyond 2.5 degC + 0.75 % of the level, with the margin
+        (50.0, 1.012, 0.0, False),  # beyond class 2 in gain, but within the fit's resolution
+        (700.0, 1.0, 18.0, True),  # beyond 2.5 degC + 0.75 % of the level, with the margin
     ],
 )
 def test_a_calibration_within_class_2_is_not_material(level_c, gain, offset_c, material):

@@ -25,10 +25,12 @@ GAIN_LIMIT = 0.2
 #: which 0.75 % of the level is added.
 CLASS2_GAIN = 0.0075
 CLASS2_OFFSET_C = 2.5
-#: A calibration counts beyond class 2 by this factor: the fit resolves a gain to about
-#: ±0.1 % and an offset to a few tenths of a degree, so a sensor pair at the edge of the class
-#: is not called miscalibrated by its fit's error.
-CLASS2_MARGIN = 1.25
+#: A calibration counts beyond class 2 by this factor: the fit resolves a gain to about ±1 %
+#: (95 % intervals on the effect simulator at K = 1 %, ``test_calibration_intervals_cover_the_
+#: truth_and_are_tight``) and more at higher noise, so a pair at the edge of the class is not
+#: called miscalibrated by its fit's error. (It was 1.25 until the first campaign draws: three
+#: clean pairs within class 2 were called miscalibrated.)
+CLASS2_MARGIN = 2.0
 
 
 class Calibration(Effect):
