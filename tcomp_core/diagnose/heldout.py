@@ -30,7 +30,7 @@ from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
-from .identification import identify
+from .identification import held_edges, identify
 from .prepare import PreparedData
 from .result import ModelFit
 from .uncertainty import parameter_covariance, parameter_uncertainty, parameters_at_bound
@@ -71,12 +71,8 @@ def heldout_error_percent(
 
 def _pad(gas: NDArray[np.float64]) -> NDArray[np.float64]:
     """Gas held over each interval, shape (N - 1,), to one value per sample, shape (N,)."""
-    finite = np.flatnonzero(np.isfinite(gas))
-    out = np.append(gas, gas[finite[-1]] if finite.size else np.nan)
-    if finite.size:
-        out[: finite[0]] = gas[finite[0]]
-        out[finite[-1] + 1 :] = gas[finite[-1]]
-    return out
+    held = held_edges(gas)
+    return np.append(held, held[-1] if held.size else np.nan)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -50,6 +50,7 @@ __all__ = [
     "MAX_CHANGE_PER_EVIDENCE",
     "Identification",
     "ParameterCheck",
+    "held_edges",
     "identify",
 ]
 
@@ -179,7 +180,7 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def _held_edges(gas: NDArray[np.float64]) -> NDArray[np.float64]:
+def held_edges(gas: NDArray[np.float64]) -> NDArray[np.float64]:
     """``gas`` with its non-finite edges (a delay's shift) held at the nearest finite value."""
     finite = np.flatnonzero(np.isfinite(gas))
     if finite.size == 0:
@@ -197,7 +198,7 @@ def _gas_pair(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Each sensor's reconstruction under ``model``, edges held, shape (N - 1,) each."""
     gas1, gas2 = model.reconstruct(*readings, context)
-    return _held_edges(gas1), _held_edges(gas2)
+    return held_edges(gas1), held_edges(gas2)
 
 
 def _rms(values: NDArray[np.float64], keep: NDArray[np.bool_]) -> float:
