@@ -42,7 +42,9 @@ def _taus(kind, rate, duration, runs, method=None, seed=0):
 def test_default_path_unbiased_at_high_rates(kind, rate, duration):
     errors = _taus(kind, rate, duration, RUNS, seed=140_000 + rate)
     bias, spread = errors.mean(axis=0), errors.std(axis=0)
-    assert np.all(np.abs(bias) < 0.5), bias
+    # Within 0.25 % beyond three standard errors of the mean: on one tone the gain between the
+    # sensors rests on its class-2 prior and τ2 scatters by about 0.5 % (12 runs).
+    assert np.all(np.abs(bias) < 0.25 + 3.0 * spread / math.sqrt(RUNS)), (bias, spread)
     assert np.all(spread <= 1.0), spread
 
 
@@ -57,22 +59,28 @@ def test_beta_gtls_without_prefilter_is_off_where_the_default_is_not():
 
 @pytest.mark.parametrize("phi", [0.1, 1.0, 10.0])
 @pytest.mark.parametrize("rows", [50, 400])
-def test_whitening_equals_the_dense_cholesky_solve(phi, rows):
+@pytest.mark.parametrize("gain", [1.0, 0.98])
+def test_whitening_equals_the_dense_cholesky_solve(phi, rows, gain):
     rng = np.random.default_rng(3)
     tc1, tc2 = rng.standard_normal(rows + 1).cumsum(), rng.standard_normal(rows + 1).cumsum()
-    problem = _CrossRelation.from_signals(tc1, tc2, 2e-4, phi)
-    log_tau = np.log([0.0238, 0.1168])
-    diagonal, off = problem.covariance_bands(log_tau)
-    sigma = (
-        np.diag(np.full(rows, diagonal))
-        + np.diag(np.full(rows - 1, off), 1)
-        + np.diag(np.full(rows - 1, off), -1)
-    )
+    dt = 2e-4
+    problem = _CrossRelation.from_signals(tc1, tc2, dt, phi)
+    taus = np.array([0.0238, 0.1168])
+    x = np.append(np.log(taus), gain - 1.0)
+    # Σ = φ R1 + g² R2, R_i the covariance of one reconstruction's noise: tridiagonal with
+    # (1 + a²) c² on the diagonal and -a c² beside it.
+    sigma = np.zeros((rows, rows))
+    for weight, tau in zip((phi, gain**2), taus, strict=True):
+        a = math.exp(-dt / tau)
+        c = 1.0 / (1.0 - a)
+        sigma += weight * (
+            np.diag(np.full(rows, (1 + a * a) * c * c))
+            - np.diag(np.full(rows - 1, a * c * c), 1)
+            - np.diag(np.full(rows - 1, a * c * c), -1)
+        )
     lower = cholesky(sigma, lower=True)
-    expected = np.linalg.solve(lower, problem.residual(log_tau))
-    assert np.allclose(
-        problem.whitened(log_tau), expected, rtol=1e-9, atol=1e-9 * abs(expected).max()
-    )
+    expected = np.linalg.solve(lower, problem.residual(x))
+    assert np.allclose(problem.whitened(x), expected, rtol=1e-9, atol=1e-9 * abs(expected).max())
 
 
 def test_warm_start_reaches_the_same_minimum_in_fewer_steps():

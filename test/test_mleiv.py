@@ -75,13 +75,20 @@ def test_grid_start_reaches_the_same_minimum(monkeypatch):
 
 
 @functools.cache
-def monte_carlo(kind):
+def monte_carlo(kind, gains=False):
     """Arrays (RUNS, 2) at K = 4 %: τ from ml-eiv and β-GTLS, ml-eiv's standard errors and
-    whether its 95 % intervals hold the truth."""
+    whether its 95 % intervals hold the truth.
+
+    With ``gains`` tc1 reads a gain drawn from ml-eiv's prior, N(1, GAIN_PRIOR²), on each run:
+    the spread its standard errors and intervals describe (on a sinusoid the data cannot tell
+    a gain from τ, and the prior's width is all there is).
+    """
     ml, gtls, errors, covered = (np.empty((RUNS, 2)) for _ in range(4))
+    rng = np.random.default_rng(SEEDS[kind] - 1)
     for run in range(RUNS):
         pair = simulate_pair(kind, noise_percent=4.0, seed=SEEDS[kind] + run)
-        result = estimate(pair.tc1, pair.tc2, pair.dt, "ml-eiv")
+        gain = 1.0 + mleiv_module.GAIN_PRIOR * rng.standard_normal() if gains else 1.0
+        result = estimate(gain * pair.tc1, pair.tc2, pair.dt, "ml-eiv")
         ml[run] = result.tau1, result.tau2
         reference = estimate(pair.tc1, pair.tc2, pair.dt, "beta-gtls")
         gtls[run] = reference.tau1, reference.tau2
@@ -113,16 +120,27 @@ def test_unbiased(kind):
 
 @pytest.mark.parametrize("which", [0, 1])
 def test_interval_coverage(which):
-    hits = np.concatenate([monte_carlo(kind)[3][:, which] for kind in ("sinusoid", "ramp")])
+    hits = np.concatenate(
+        [monte_carlo(kind, gains=True)[3][:, which] for kind in ("sinusoid", "ramp")]
+    )
     assert 0.85 <= hits.mean() <= 1.0, hits.mean()
 
 
 @pytest.mark.parametrize("kind", ["sinusoid", "ramp"])
 def test_standard_error_matches_the_spread(kind):
-    """The reported standard error is the spread of the estimates, not just a coverage fluke."""
-    ml, _, errors, _ = monte_carlo(kind)
-    # std of a 40-run standard deviation: 11 %; 0.25 is over two of them
+    """The reported standard error is the spread of the estimates over noise and class-2 gains,
+    not just a coverage fluke."""
+    ml, _, errors, _ = monte_carlo(kind, gains=True)
+    # std of an 80-run standard deviation: 8 %; 0.25 is three of them
     np.testing.assert_allclose(errors.mean(axis=0), ml.std(axis=0), rtol=0.25)
+
+
+def test_a_sinusoid_cannot_tell_a_gain_from_tau_and_says_so():
+    """On one tone the gain rests on its prior: τ2's standard error holds the gain's share."""
+    same, gained = (monte_carlo("sinusoid", gains=flag) for flag in (False, True))
+    # The spread over class-2 gains is wider than over noise alone, and the errors say so.
+    assert gained[0][:, 1].std() > 1.5 * same[0][:, 1].std()
+    assert gained[2][:, 1].mean() > 1.5 * same[0][:, 1].std()
 
 
 # --------------------------------------------------------------------------------------------
@@ -287,6 +305,10 @@ def test_params_are_plain_floats():
         "tau2_ci_high",
         "noise_sigma2",
         "offset_c",
+        "gain",
+        "gain_se",
+        "gain_ci_low",
+        "gain_ci_high",
         "phi_estimated",
         "start_beta_gtls",
         "start_warm",

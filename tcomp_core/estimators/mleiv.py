@@ -19,23 +19,30 @@ for every c, and minimising
 is consistent. A constant offset b between the two readings (a calibration or cold-junction
 error; IEC 60584 class 2 allows ±2.5 °C) adds a constant to e and, left in, drags τ to the
 edge of the search; it is eliminated at every τ (variable projection,
-:meth:`_CrossRelation.projected`), so J is minimised over (τ1, τ2, b) and b is reported
-(``offset_c``). A gain mismatch is not: with one sinusoid it cannot be told from τ. It is the
-efficient weighting of the residual: β-GTLS (Eqs. 18–21) weights the
-same equation error by its variance alone and ignores the band of Σ; at the paper's conditions
+:meth:`_CrossRelation.projected`) and reported (``offset_c``). A gain g between the readings
+(class 2 allows 0.75 %) multiplies one reconstruction: the residual becomes u1 - g u2 - b and
+Σ = φR1 + g²R2. Left out, 0.75 % moved τ1 by 7 % on a slow drift around 50 °C (the gain
+confounds the second-order term that separates τ1 from τ2), so g is fitted with τ, with the
+class-2 tolerance as a Gaussian prior (:data:`GAIN_PRIOR`, a row of the residual): where the
+data carry the gain (broadband signals, drifts) they decide; on one sinusoid, which cannot
+tell a gain from τ, the prior does and τ's intervals widen by the gain's share (``gain``,
+``gain_ci_low``, ``gain_ci_high``).
+
+J is the efficient weighting of the residual: β-GTLS (Eqs. 18–21) weights the same equation
+error by its variance alone and ignores the band of Σ; at the paper's conditions
 and K = 4 % its τ1 scatters about three times as much.
 
 Σ is tridiagonal Toeplitz, so the whitened residual L⁻¹e (Σ = LLᵀ) has a closed form that
 costs one first-order recursive filter (:meth:`_CrossRelation.whiten`);
 :func:`scipy.optimize.least_squares` minimises the squared norm of the projected residual over
-log τ. The asymptotic
-covariance of log τ is σ̂² (JᵀJ)⁻¹ with J the Jacobian of the projected residual and
-σ̂² = J_min/(N - 4). The regressors ΔT_mi are noisy, so XᵀΣ⁻¹X (X = ∂e/∂c) overstates the
-information; JᵀJ, which also carries the derivative of the whitening, matched the
-noise-corrected X_Sᵀ Σ⁻¹ X_S (clean regressors) within 0.2 % in Monte Carlo checks. The
-fourth-order noise term of the score's variance, computed in the frequency domain, stays below
-1 % of the variance up to K = 12 % at the paper's conditions, so no sandwich correction is
-applied. Monte Carlo coverage of the 95 % intervals: see ``bench/bench_accuracy.py``.
+(log τ1, log τ2, g - 1). The asymptotic covariance of these is σ̂² (JᵀJ)⁻¹ with J the
+Jacobian of the projected residual (the prior's row included) and σ̂² = J_min/(N - 5). The
+regressors ΔT_mi are noisy, so XᵀΣ⁻¹X (X = ∂e/∂c) overstates the information; JᵀJ, which also
+carries the derivative of the whitening, matched the noise-corrected X_Sᵀ Σ⁻¹ X_S (clean
+regressors) within 0.2 % in Monte Carlo checks. The fourth-order noise term of the score's
+variance, computed in the frequency domain, stays below 1 % of the variance up to K = 12 % at
+the paper's conditions, so no sandwich correction is applied. Monte Carlo coverage of the
+95 % intervals: see ``bench/bench_accuracy.py``.
 
 Two consequences of weighting by the noise spectrum. A pre-filter applied to both signals
 leaves the noise term tr(Σ⁻¹ F Σ Fᵀ) ≈ tr(FᵀF) independent of c, so the estimate stays
@@ -52,11 +59,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 from scipy.signal import lfilter
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
 from ..noise import estimate_noise, model_noise
+from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
 from .result import Estimate, estimate_from_poles
 
@@ -72,8 +80,18 @@ _GRID_POINTS = 12
 _ROUNDING = 1e-10
 #: Range of the start grid and of the search, in sample intervals (low) and record lengths (high).
 _TAU_LOW_SAMPLES = 0.02
-#: Parameters fitted to the residual: τ1, τ2 and the offset between the sensors.
-_FITTED = 3
+#: Parameters fitted to the residual: τ1, τ2, the offset and the gain between the sensors.
+_FITTED = 4
+#: Prior standard deviation of the gain between the sensors: the class-2 tolerance.
+GAIN_PRIOR = CLASS2_GAIN
+#: The noise σ that weights the gain's prior is at least this fraction of tc2's standard
+#: deviation: a record without noise still has the prior that makes a gain and τ separable on
+#: a single sinusoid (as a record with 0.1 % noise would).
+_PRIOR_NOISE_FLOOR = 1e-3
+#: σ of a normal distribution per median absolute deviation.
+_MAD_TO_SIGMA = 1.482602218505602
+#: The search's range of the gain deviation h = g - 1 between the sensors.
+_GAIN_RANGE = 0.5
 _TAU_HIGH_RECORDS = 10.0
 
 
@@ -136,7 +154,10 @@ def _check_phi(phi: float) -> float:
 
 @dataclass(frozen=True)
 class _CrossRelation:
-    """The cross-relation residual e(τ) of a record and its whitening.
+    """The cross-relation residual e(τ, g) of a record and its whitening.
+
+    The parameters x = (log τ1, log τ2, h) (τ in s) hold the gain g = 1 + h of tc1's reading
+    per degree of tc2's; the offset b between the readings is eliminated at every x.
 
     Attributes
     ----------
@@ -144,76 +165,103 @@ class _CrossRelation:
         T_m1(k) - T_m2(k), degrees C, M = N - 1.
     step1, step2 : ndarray, shape (M,)
         ΔT_m1(k), ΔT_m2(k), degrees C.
+    reading2 : ndarray, shape (M,)
+        T_m2(k) minus its mean, degrees C: with ``step2`` it makes tc2's reconstruction about
+        its mean, ũ2 = reading2 + c2 ΔT_m2, which the gain multiplies.
     dt : float
         Sample interval, s.
     phi : float
         Noise variance ratio σ1²/σ2².
+    gain_weight : float
+        w = σ2 / σ_g, degrees C (> 0): the prior on h, N(0, σ_g²), is the row w h of the
+        residual, whose other rows are in units of σ2.
     """
 
     level: NDArray[np.float64]
     step1: NDArray[np.float64]
     step2: NDArray[np.float64]
+    reading2: NDArray[np.float64]
     dt: float
     phi: float
+    gain_weight: float
 
     @classmethod
     def from_signals(
-        cls, tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float, phi: float
+        cls,
+        tc1: NDArray[np.float64],
+        tc2: NDArray[np.float64],
+        dt: float,
+        phi: float,
+        gain_weight: float = 1.0 / CLASS2_GAIN,
     ) -> _CrossRelation:
         """The residual's data terms from readings of shape (N,), degrees C."""
-        return cls(tc1[:-1] - tc2[:-1], np.diff(tc1), np.diff(tc2), dt, phi)
+        head2 = tc2[:-1]
+        return cls(
+            tc1[:-1] - head2,
+            np.diff(tc1),
+            np.diff(tc2),
+            head2 - head2.mean(),
+            dt,
+            phi,
+            gain_weight,
+        )
 
     @property
     def rows(self) -> int:
         """Residual samples M = N - 1."""
         return self.level.size
 
-    def gains(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
-        """c_i = 1/(1 - a_i), shape (2,), for log τ (τ in s)."""
-        return 1.0 / -np.expm1(-self.dt / np.exp(log_tau))
+    def gains(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """c_i = 1/(1 - a_i), shape (2,), for x = (log τ1, log τ2, h)."""
+        return 1.0 / -np.expm1(-self.dt / np.exp(x[:2]))
 
-    def residual(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
-        """e[k] = u1[k] - u2[k], shape (M,), degrees C."""
-        c1, c2 = self.gains(log_tau)
-        return self.level + c1 * self.step1 - c2 * self.step2
+    def residual(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """e[k] = u1[k] - g u2[k] up to a constant, shape (M,), degrees C."""
+        c1, c2 = self.gains(x)
+        reconstruction2 = self.reading2 + c2 * self.step2
+        return self.level + c1 * self.step1 - c2 * self.step2 - x[2] * reconstruction2
 
-    def covariance_bands(self, log_tau: NDArray[np.float64]) -> tuple[float, float]:
-        """Diagonal d and off-diagonal o (< 0) of the Toeplitz Σ(τ), in units of σ2²."""
-        c1, c2 = self.gains(log_tau)
+    def covariance_bands(self, x: NDArray[np.float64]) -> tuple[float, float]:
+        """Diagonal d and off-diagonal o (< 0) of the Toeplitz Σ = φR1 + g²R2, in σ2²."""
+        c1, c2 = self.gains(x)
+        gain2 = (1.0 + x[2]) ** 2
         # (1 + a²) c² = 2c² - 2c + 1 and a c² = c² - c, with a = 1 - 1/c.
-        diagonal = self.phi * (2.0 * c1 * c1 - 2.0 * c1 + 1.0) + (2.0 * c2 * c2 - 2.0 * c2 + 1.0)
-        off_diagonal = -(self.phi * (c1 * c1 - c1) + (c2 * c2 - c2))
+        diagonal = self.phi * (2.0 * c1 * c1 - 2.0 * c1 + 1.0) + gain2 * (
+            2.0 * c2 * c2 - 2.0 * c2 + 1.0
+        )
+        off_diagonal = -(self.phi * (c1 * c1 - c1) + gain2 * (c2 * c2 - c2))
         return float(diagonal), float(off_diagonal)
 
-    def whitened(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
+    def whitened(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """L⁻¹ e with Σ = LLᵀ (Cholesky), shape (M,), in units of σ2 (see :meth:`whiten`)."""
-        return self.whiten(log_tau, self.residual(log_tau))
+        return self.whiten(x, self.residual(x))
 
-    def projected(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
-        """L⁻¹ (e - b), shape (M,), with the offset b between the sensors that fits best.
+    def projected(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """L⁻¹ (e - b) at the best offset b, and the gain's prior row w h: shape (M + 1,).
 
         A constant offset of one sensor's reading (calibration, cold junction) adds a constant
-        to e; it is a linear parameter, eliminated in closed form at every τ (variable
+        to e; it is a linear parameter, eliminated in closed form at every x (variable
         projection: the whitened residual minus its projection on the whitened constant).
-        The squared norm is J minimised over b.
+        The squared norm is J plus the prior's term, minimised over b.
         """
-        whitened, constant = self._whitened_with_constant(log_tau)
-        return whitened - constant * ((constant @ whitened) / (constant @ constant))
+        whitened, constant = self._whitened_with_constant(x)
+        projected = whitened - constant * ((constant @ whitened) / (constant @ constant))
+        return np.append(projected, self.gain_weight * x[2])
 
-    def offset(self, log_tau: NDArray[np.float64]) -> float:
-        """The best offset b of :meth:`projected`: tc1's reading minus tc2's, degrees C."""
-        whitened, constant = self._whitened_with_constant(log_tau)
+    def offset(self, x: NDArray[np.float64]) -> float:
+        """The best b of :meth:`projected`: tc1's reading minus g × tc2's at tc2's mean, °C."""
+        whitened, constant = self._whitened_with_constant(x)
         return float((constant @ whitened) / (constant @ constant))
 
-    def _whitened_with_constant(self, log_tau: NDArray[np.float64]) -> NDArray[np.float64]:
+    def _whitened_with_constant(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """L⁻¹ e and L⁻¹ 1 at once, shape (2, M)."""
-        return self.whiten(log_tau, np.stack((self.residual(log_tau), self._ones)))
+        return self.whiten(x, np.stack((self.residual(x), self._ones)))
 
     @functools.cached_property
     def _ones(self) -> NDArray[np.float64]:
         return np.ones(self.rows)
 
-    def whiten(self, log_tau: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray:
+    def whiten(self, x: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray:
         """L⁻¹ values with Σ = LLᵀ (Cholesky), shape (M,) or (k, M) as ``values``, in σ2.
 
         Σ is tridiagonal Toeplitz, so its leading minors are D_k = (r1^(k+2) - r2^(k+2)) /
@@ -223,9 +271,9 @@ class _CrossRelation:
         stable w_k = D̃_(k-1) e_k - (o / r1) w_(k-1), D̃_k = D_k / r1^(k+1): one
         :func:`scipy.signal.lfilter` instead of a banded Cholesky factorisation.
         """
-        diagonal, off_diagonal = self.covariance_bands(log_tau)
-        # d - 2|o| = φ + 1 exactly: the discriminant without cancellation.
-        root = math.sqrt((self.phi + 1.0) * (diagonal - 2.0 * off_diagonal))
+        diagonal, off_diagonal = self.covariance_bands(x)
+        # d - 2|o| = φ + g² exactly: the discriminant without cancellation.
+        root = math.sqrt((self.phi + (1.0 + x[2]) ** 2) * (diagonal - 2.0 * off_diagonal))
         r1 = 0.5 * (diagonal + root)
         if not (math.isfinite(r1) and r1 > 0.0):
             raise EstimationError(f"ml-eiv: the noise covariance is singular (d = {diagonal})")
@@ -241,26 +289,31 @@ class _CrossRelation:
         """The exponents k + 2 of the minors D̃_k, k = -1 .. M-1, shape (M + 1,)."""
         return np.arange(1.0, self.rows + 2.0)
 
-    def criterion(self, log_tau: NDArray[np.float64]) -> float:
-        """J = (e - b)ᵀ Σ⁻¹ (e - b) at the best offset b, degrees C²."""
-        whitened = self.projected(log_tau)
+    def criterion(self, x: NDArray[np.float64]) -> float:
+        """J = (e - b)ᵀ Σ⁻¹ (e - b) + (w h)² at the best offset b, degrees C²."""
+        whitened = self.projected(x)
         return float(whitened @ whitened)
 
-    def bounds(self) -> tuple[float, float]:
-        """Search range of log τ: a fiftieth of a sample to ten record lengths."""
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Search range of x: log τ from a fiftieth of a sample to ten record lengths, h ± 0.5."""
         duration = (self.rows + 1) * self.dt
-        return math.log(_TAU_LOW_SAMPLES * self.dt), math.log(_TAU_HIGH_RECORDS * duration)
+        low = math.log(_TAU_LOW_SAMPLES * self.dt)
+        high = math.log(_TAU_HIGH_RECORDS * duration)
+        return np.array([low, low, -_GAIN_RANGE]), np.array([high, high, _GAIN_RANGE])
 
 
 def _grid_start(problem: _CrossRelation) -> NDArray[np.float64]:
-    """The log τ pair of a log-spaced grid with the smallest criterion, shape (2,)."""
+    """The x of a log-spaced τ grid (equal gains) with the smallest criterion, shape (3,)."""
     low, high = problem.bounds()
-    axis = np.linspace(low, high, _GRID_POINTS + 2)[1:-1]
+    axis = np.linspace(low[0], high[0], _GRID_POINTS + 2)[1:-1]
     values = [
-        (problem.criterion(np.array([x1, x2])), x1, x2) for x1 in axis for x2 in axis if x1 != x2
+        (problem.criterion(np.array([x1, x2, 0.0])), x1, x2)
+        for x1 in axis
+        for x2 in axis
+        if x1 != x2
     ]
     _, x1, x2 = min(values)
-    return np.array([x1, x2])
+    return np.array([x1, x2, 0.0])
 
 
 def _start(
@@ -269,24 +322,24 @@ def _start(
     tc2: NDArray[np.float64],
     warm: tuple[float, float] | None = None,
 ) -> tuple[NDArray[np.float64], str]:
-    """Starting log τ and where it came from: ``warm``, else β-GTLS with the same φ, else the grid.
+    """Starting x and where it came from: ``warm``, else β-GTLS with the same φ, else the grid.
 
-    A start outside the search range is not used.
+    Every start assumes equal gains; a start outside the search range is not used.
     """
     low, high = problem.bounds()
 
-    def inside(log_tau: NDArray[np.float64]) -> bool:
-        return bool(np.all(np.isfinite(log_tau) & (log_tau > low) & (log_tau < high)))
+    def inside(start: NDArray[np.float64]) -> bool:
+        return bool(np.all(np.isfinite(start) & (start > low) & (start < high)))
 
     if warm is not None:
-        start = np.log(np.asarray(warm, dtype=np.float64))
+        start = np.append(np.log(np.asarray(warm, dtype=np.float64)), 0.0)
         if inside(start):
             return start, "warm"
     try:
         first = beta_gtls(tc1, tc2, problem.dt, problem.phi)
     except (TcompError, ValueError):
         return _grid_start(problem), "grid"
-    start = np.log([first.tau1, first.tau2])
+    start = np.array([math.log(first.tau1), math.log(first.tau2), 0.0])
     if inside(start):
         return start, "beta-gtls"
     return _grid_start(problem), "grid"
@@ -300,14 +353,55 @@ def _equilibrated_condition(jacobian: NDArray[np.float64]) -> float:
     return float(np.linalg.cond(jacobian / norms))
 
 
-def _log_tau_covariance(jacobian: NDArray[np.float64], cost: float, rows: int) -> NDArray:
-    """Asymptotic covariance σ̂² (JᵀJ)⁻¹ of log τ, shape (2, 2); σ̂² = J_min/(M - 3).
+def _gain_weight(tc2: NDArray[np.float64]) -> float:
+    """The prior row's weight w = σ2 / σ_g (:attr:`_CrossRelation.gain_weight`), °C.
 
-    J is the Jacobian of the projected residual, so the offset's uncertainty is accounted for
-    (variable projection); three parameters were fitted.
+    σ2 is tc2's white noise from the median absolute second difference (var Δ²n = 6σ² for
+    white noise; the lagging sensor's signal is smooth from sample to sample, and the median
+    ignores its jumps), at least :data:`_PRIOR_NOISE_FLOOR` of tc2's spread. It does not
+    depend on the search's start, so neither does the estimate.
     """
-    noise_variance = 2.0 * cost / (rows - _FITTED)
-    return noise_variance * np.linalg.inv(jacobian.T @ jacobian)
+    second = np.diff(tc2, 2)
+    mad = float(np.median(np.abs(second - np.median(second)))) if second.size else 0.0
+    sigma2 = _MAD_TO_SIGMA * mad / math.sqrt(6.0)
+    return max(sigma2, _PRIOR_NOISE_FLOOR * float(np.std(tc2))) / GAIN_PRIOR
+
+
+def _search(problem: _CrossRelation, initial: NDArray[np.float64]) -> OptimizeResult:
+    """Minimise the projected residual's squared norm from ``initial`` within the bounds."""
+    low, high = problem.bounds()
+    return least_squares(
+        problem.projected, initial, jac="2-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
+    )
+
+
+def _gain_params(deviation: float, variance: float) -> dict[str, float]:
+    """The gain g = 1 + h of tc1 per degree of tc2, its standard error and 95 % interval."""
+    gain, se = 1.0 + float(deviation), math.sqrt(max(float(variance), 0.0))
+    return {
+        "gain": gain,
+        "gain_se": se,
+        "gain_ci_low": gain - _Z * se,
+        "gain_ci_high": gain + _Z * se,
+    }
+
+
+def _edge_message(problem: _CrossRelation, x: NDArray[np.float64]) -> str:
+    """Why a fit on the edge of the search failed, with the sensors' fitted disagreement."""
+    gain = 1.0 + float(x[2])
+    where = (
+        f"gain {100.0 * (gain - 1.0):+.3g} %, the search's limit"
+        if abs(x[2]) >= _GAIN_RANGE - 1e-6
+        else f"τ = {math.exp(x[0]):.3g} s, {math.exp(x[1]):.3g} s"
+    )
+    return (
+        f"ml-eiv: the best fit lies at the edge of the search range ({where}): no first-order "
+        f"pair fits. There the sensors disagree by {problem.offset(x):+.3g} °C in level and "
+        f"{100.0 * (gain - 1.0):+.3g} % in gain; IEC 60584 class 2 allows about "
+        f"{CLASS2_OFFSET_C:g} °C or {100 * CLASS2_GAIN:g} %. Beyond that, check that both "
+        "columns are thermocouples in the same gas and units, correct one sensor's "
+        "calibration, or fit the physics with --effects auto"
+    )
 
 
 def _interval_params(tau: NDArray[np.float64], covariance: NDArray) -> dict[str, float]:
@@ -330,7 +424,7 @@ def ml_eiv(
     *,
     start: tuple[float, float] | None = None,
 ) -> Estimate:
-    """ML errors-in-variables estimate: minimise J(τ1, τ2) = eᵀ Σ(τ)⁻¹ e (see the module).
+    """ML errors-in-variables estimate: minimise J = eᵀ Σ⁻¹ e + (w h)² over τ1, τ2, g, b.
 
     Parameters
     ----------
@@ -353,7 +447,9 @@ def ml_eiv(
         the column-equilibrated whitened Jacobian. ``params``: ``tau1_se``, ``tau2_se``
         (asymptotic standard errors, s), ``tau1_ci_low``, ``tau1_ci_high``, ``tau2_ci_low``,
         ``tau2_ci_high`` (95 % intervals, s), ``noise_sigma2`` (σ2 implied by J_min, degrees C),
-        ``offset_c`` (the fitted offset of tc1's reading over tc2's, degrees C),
+        ``offset_c`` (tc1's reading minus g × tc2's at tc2's mean, degrees C), ``gain``
+        (g, tc1's reading per degree of tc2's) with ``gain_se``, ``gain_ci_low`` and
+        ``gain_ci_high``,
         ``phi_estimated`` (1.0 if φ was measured), ``start_beta_gtls`` (1.0 if the search
         started from β-GTLS), ``start_warm`` (1.0 if from ``start``) and ``evaluations`` (of
         the residual, not counting the Jacobian's).
@@ -366,37 +462,36 @@ def ml_eiv(
         If the data do not determine both time constants (singular Jacobian).
     EstimationError
         If the search fails or its minimum lies on the edge of the search range (no
-        first-order pair fits).
+        first-order pair fits; the message gives the sensors' fitted disagreement in level
+        and gain).
     """
     measured = phi is None
     phi = phi_from_data(tc1, tc2, dt) if phi is None else _check_phi(phi)
-    problem = _CrossRelation.from_signals(tc1, tc2, dt, phi)
+    problem = _CrossRelation.from_signals(tc1, tc2, dt, phi, _gain_weight(tc2))
     initial, origin = _start(problem, tc1, tc2, start)
+    fit = _search(problem, initial)
     low, high = problem.bounds()
-    fit = least_squares(
-        problem.projected, initial, jac="3-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
-    )
     if not fit.success:
         raise EstimationError(f"ml-eiv: the search did not converge ({fit.message})")
     if np.any(np.minimum(fit.x - low, high - fit.x) < 1e-6):
-        raise EstimationError(
-            f"ml-eiv: the best fit lies at the edge of the search range (τ = "
-            f"{np.exp(fit.x[0]):.3g} s, {np.exp(fit.x[1]):.3g} s): no first-order pair fits"
-        )
-    # A dense array: the "3-point" Jacobian without jac_sparsity (typed as a union).
+        raise EstimationError(_edge_message(problem, fit.x))
+    # A dense array: the "2-point" Jacobian without jac_sparsity (typed as a union).
     jacobian = np.asarray(fit.jac, dtype=np.float64)
-    condition = _equilibrated_condition(jacobian)
+    condition = _equilibrated_condition(jacobian[:, :2])
     if not condition < MAX_CONDITION:
         raise NoExcitationError(
             f"ml-eiv: the time constants are not separately determined (condition "
             f"{condition:.3g}): the data carry no information on the time constants"
         )
-    tau = np.exp(fit.x)
+    tau = np.exp(fit.x[:2])
     a1, a2 = np.exp(-dt / tau)
+    noise_variance = 2.0 * fit.cost / (problem.rows - _FITTED)
+    covariance = noise_variance * np.linalg.inv(jacobian.T @ jacobian)
     params = {
-        **_interval_params(tau, _log_tau_covariance(jacobian, fit.cost, problem.rows)),
-        "noise_sigma2": math.sqrt(2.0 * fit.cost / (problem.rows - _FITTED)),
+        **_interval_params(tau, covariance),
+        "noise_sigma2": math.sqrt(noise_variance),
         "offset_c": problem.offset(fit.x),
+        **_gain_params(fit.x[2], covariance[2, 2]),
         "phi_estimated": 1.0 if measured else 0.0,
         "start_beta_gtls": 1.0 if origin == "beta-gtls" else 0.0,
         "start_warm": 1.0 if origin == "warm" else 0.0,
