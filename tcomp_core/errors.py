@@ -10,6 +10,7 @@ from __future__ import annotations
 __all__ = [
     "DataError",
     "EstimationError",
+    "InvalidReadingsWarning",
     "NoExcitationError",
     "PhysicalRangeError",
     "TcompError",
@@ -47,3 +48,10 @@ class TcompWarning(UserWarning):
 
 class TruncatedInputWarning(TcompWarning):
     """An input ends early (a bag still being written, or cut off); it was read up to there."""
+
+
+class InvalidReadingsWarning(TcompWarning):
+    """Samples of an input were left out (readings not finite or outside the physical range).
+
+    Also a repeated time, or a gas not written; the message counts them and names the first.
+    """

@@ -70,6 +70,17 @@ def combination_weight(
     raise ValueError(f"unknown combination {combine!r}; choose one of {', '.join(COMBINATIONS)}")
 
 
+def noise_gain(a1: float, a2: float, weight1: float) -> float:
+    """How many times Eq. (7)'s combined gas multiplies the readings' noise σ (equal σ).
+
+    Each reconstruction's noise has variance (1 + a_i²)/(1 - a_i)² σ²; the combination weighs
+    them by ``weight1`` and 1 - ``weight1``.
+    """
+    variance1 = (1.0 + a1**2) / (1.0 - a1) ** 2
+    variance2 = (1.0 + a2**2) / (1.0 - a2) ** 2
+    return float(np.sqrt(weight1**2 * variance1 + (1.0 - weight1) ** 2 * variance2))
+
+
 def reconstruct(
     tc1: ArrayLike,
     tc2: ArrayLike,

@@ -343,3 +343,24 @@ def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied(
     assert model.applied() == ()
     assert "95 % band on the gas" in model.pieces[0].reason
     assert (model.tau1, model.tau2) == (diagnosis.base.tau1, diagnosis.base.tau2)
+
+
+def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
+    """Pure noise on both channels: the first-order fit ends on its τ bound, and the gas is
+    refused as the first-order path refuses it (it was written with τ1 = 10 s, exit 0)."""
+    from tcomp_core.compensation import fit_output_model
+    from tcomp_core.errors import EstimationError
+    from tcomp_core.io import Record
+
+    rng = np.random.default_rng(26)
+    time = np.arange(4000) * 0.002
+    noise = 300.0 + rng.standard_normal((2, time.size))
+    record = Record(time=time, tc1=noise[0], tc2=noise[1], ref=None, source="noise", dt=0.002)
+    with pytest.raises(
+        EstimationError, match=r"noise: the first-order fit does not determine the time"
+    ):
+        fit_output_model(record, ())
+    # A record of two sensors in one gas is not refused by the same check.
+    sim = simulate_effect(None, "multisine", duration=4.0, noise_percent=1.0, seed=3)
+    good = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="good", dt=sim.dt)
+    assert fit_output_model(good, ()).effects == ()

@@ -44,7 +44,8 @@ def small_bag(tmp_path_factory):
 
 def check_record(record):
     assert record.tc1.size == record.tc2.size == record.time.size
-    assert np.isfinite(record.tc1).all() and np.isfinite(record.tc2).all()
+    for values in (record.tc1, record.tc2):
+        assert ((values >= -273.15) & (values <= 2000.0)).all()
     assert np.isfinite(record.time).all()
 
 

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
 from ..effects.chain import SensorChain
+from ..errors import EstimationError
 
 if TYPE_CHECKING:
     from ..diagnose import Diagnosis
@@ -63,6 +64,9 @@ __all__ = [
 
 #: ``OutputModel.name`` of the plain first-order model.
 FIRST_ORDER = "first-order"
+#: A first-order τ whose 95 % interval spans more than this factor is not determined: pure
+#: noise gives 0.004..8 s, two sensors in one gas at K = 60 % a factor of 2.
+MAX_TAU_INTERVAL_RATIO = 10.0
 
 #: Effects a causal stream cannot apply: a velocity's τ(t) is known only over the fitted
 #: record; a level-dependent τ's film temperature is a zero-phase low-pass of the gas.
@@ -282,9 +286,15 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
     ------
     ValueError
         If the diagnosis carries no fit context.
+    EstimationError
+        If the first-order fit leaves τ1 or τ2 undetermined (on a bound of its range, or a 95 %
+        interval wider than :data:`MAX_TAU_INTERVAL_RATIO`): no first-order pair fits the
+        record (pure noise, unrelated signals), so nothing is compensated, as the first-order
+        path refuses it.
     """
     if diagnosis.context is None:
         raise ValueError(f"{diagnosis.source}: the diagnosis carries no fit context")
+    _check_first_order(diagnosis)
     final = diagnosis.final
     expected = set(diagnosis.expected_physics)
     base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
@@ -308,6 +318,24 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         at_bound=tuple(final.at_bound),
         identification=final.identification,
     )
+
+
+def _check_first_order(diagnosis: Diagnosis) -> None:
+    """Refuse a record whose first-order τ the data do not determine (see the caller)."""
+    base = diagnosis.base
+    loose = []
+    for name in ("tau1", "tau2"):
+        low, high = base.intervals.get(name, (math.nan, math.nan))
+        if name in base.at_bound or high > MAX_TAU_INTERVAL_RATIO * low:
+            loose.append(
+                f"{name} = {base.params[name]:.3g} s, 95 % interval {low:.3g}..{high:.3g}"
+            )
+    if loose:
+        raise EstimationError(
+            f"{diagnosis.source}: the first-order fit does not determine the time constants "
+            f"({'; '.join(loose)}): no first-order pair fits this record, so no gas is "
+            "compensated (are both signals thermocouples in one gas?)"
+        )
 
 
 def _refusal(

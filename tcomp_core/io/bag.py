@@ -135,14 +135,17 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
         Missing path, not a bag, not MCAP, corrupt MCAP (CRC mismatch, a record length that
         disagrees, naming file, chunk and offset), missing topic (the bag's topics and types
         are listed), wrong message type, topic without messages, stamps of tc1 and tc2 (or
-        ref) that do not pair one to one, non-finite temperature, stamps not strictly
-        increasing or not uniform.
+        ref) that do not pair one to one, stamps not strictly increasing or not uniform, or
+        readings that :func:`~tcomp_core.io.screening.screen_samples` cannot leave out.
 
     Warns
     -----
     TruncatedInputWarning
         The bag ends early (still being written, or cut off): it is read up to its last
         complete record, and samples after the last stamp all topics reached are dropped.
+    InvalidReadingsWarning
+        Readings not finite or outside the physical range, or repeated stamps, left out
+        (:mod:`tcomp_core.io.screening`).
     """
     path = Path(path)
     tc1_topic, tc2_topic, ref_topic = check_names(topics, DEFAULT_TOPICS, "topics")
@@ -178,16 +181,6 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
                 topic_stamps[:keep],
                 temperatures[topic][:keep],
             )
-    for topic in dict.fromkeys(order):
-        values = temperatures[topic]
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            index = int(bad[0])
-            raise DataError(
-                f"{path}: topic {topic}, message {index} (stamp "
-                f"{format_stamp(int(stamps[topic][index]))}) has temperature "
-                f"{float(values[index])!r}; {bad.size} of {values.size} messages are not finite"
-            )
     for topic in order[1:]:
         _check_paired(path, tc1_topic, stamps[tc1_topic], topic, stamps[topic])
     stamps_ns = stamps[tc1_topic]
@@ -198,6 +191,8 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
         temperatures[tc2_topic],
         temperatures[order[2]] if use_ref else None,
         time_name=f"header.stamp of {tc1_topic}",
+        names=(f"topic {tc1_topic}", f"topic {tc2_topic}"),
+        where=lambda index: f"stamp {format_stamp(int(stamps_ns[index]))}",
         index_hint=f" (times counted from the first stamp, {format_stamp(int(stamps_ns[0]))})",
         frame_id=found[tc1_topic].frame_id,
         stamps_ns=stamps_ns,
@@ -262,7 +257,7 @@ def write_bag(
         Sample times, seconds (finite; stamps must come out in [0, 2**31) s).
     series : mapping of topic to array_like, shape (N,)
         Temperatures per topic, degrees C. Values are written as given (non-finite values
-        too, so that bad bags can be made for tests; :func:`read_bag` refuses them).
+        too: a gas marked not valid, or bad bags for tests; :func:`read_bag` leaves them out).
     frame_id : str
         ``header.frame_id`` of every message.
     variance : mapping of topic to float or array_like of shape (N,), optional

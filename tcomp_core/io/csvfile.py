@@ -34,7 +34,9 @@ def _looks_numeric(text: str) -> bool:
     return True
 
 
-def read_csv(path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMNS) -> Record:
+def read_csv(
+    path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMNS, screen: bool = True
+) -> Record:
     """Read a CSV record with a header ``time,tc1,tc2[,ref]``.
 
     Parameters
@@ -45,6 +47,9 @@ def read_csv(path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMN
         Column names of the two thermocouples and the optional reference; the time column is
         always ``time`` (seconds). The default reference column ``ref`` is read when present
         and ignored when absent; any other reference column named must exist.
+    screen : bool
+        Leave out invalid readings and repeated rows (:mod:`tcomp_core.io.screening`); False
+        keeps them for the pair matcher of ``tcomp process``, which drops them itself.
 
     Returns
     -------
@@ -55,9 +60,17 @@ def read_csv(path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMN
     ------
     DataError
         Missing or unreadable file, no header, missing or duplicated column, empty file or
-        header only, ragged row, blank line inside the data, non-numeric or non-finite cell,
-        time not strictly increasing or not uniform. The message names the file, the row as
+        header only, ragged row, blank line inside the data, non-numeric cell, non-finite
+        time, time not strictly increasing or not uniform, or readings that
+        :func:`~tcomp_core.io.screening.screen_samples` cannot
+        leave out. The message names the file, the row as
         numbered in the file (header = row 1), the column and the text.
+
+    Warns
+    -----
+    InvalidReadingsWarning
+        Readings not finite or outside the physical range, or repeated times, left out
+        (:mod:`tcomp_core.io.screening`).
     """
     path = Path(path)
     tc1_name, tc2_name, ref_name = check_names(columns, DEFAULT_COLUMNS, "columns")
@@ -69,7 +82,7 @@ def read_csv(path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMN
         raise DataError(f"{path}: cannot open CSV file: {exc.strerror}") from exc
     try:
         with handle:
-            return _parse_csv(path, csv.reader(handle), tc1_name, tc2_name, ref_name)
+            return _parse_csv(path, csv.reader(handle), tc1_name, tc2_name, ref_name, screen)
     except UnicodeDecodeError as exc:
         raise DataError(
             f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})"
@@ -84,6 +97,7 @@ def _parse_csv(
     tc1_name: str,
     tc2_name: str,
     ref_name: str | None,
+    screen: bool,
 ) -> Record:
     header = next(reader, None)
     if header is None or not any(cell.strip() for cell in header):
@@ -133,10 +147,8 @@ def _parse_csv(
                     f"{path}: row {row_number}, column {wanted[column]!r}: {text!r} is not "
                     "a number"
                 ) from None
-            if not math.isfinite(number):
-                raise DataError(
-                    f"{path}: row {row_number}, column {wanted[column]!r}: {text!r} is not finite"
-                )
+            if column == 0 and not math.isfinite(number):
+                raise DataError(f"{path}: row {row_number}, column 'time': {text!r} is not finite")
             values[column].append(number)
     if not values[0]:
         raise DataError(f"{path}: header only, no samples")
@@ -149,7 +161,10 @@ def _parse_csv(
         arrays[2],
         arrays[3] if use_ref else None,
         time_name="column 'time'",
+        names=(f"column {tc1_name!r}", f"column {tc2_name!r}"),
+        where=lambda index: f"row {index + 2}",
         index_hint=" (sample k is on row k + 2 of the file)",
+        screen=screen,
     )
 
 

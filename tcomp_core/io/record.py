@@ -9,7 +9,7 @@ them for messages.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -86,6 +86,9 @@ class Record:
         ``sec + nanosec / 1e9``.
     origin : BagOrigin or None
         The bag read (bags only): writers copy its messages unchanged from there.
+    left_out : ndarray of bool, shape (N,), or None
+        Samples whose readings were invalid and are bridged by straight lines
+        (:mod:`tcomp_core.io.screening`): no gas is written there. None when there are none.
 
     Raises
     ------
@@ -102,6 +105,7 @@ class Record:
     frame_id: str = ""
     stamps_ns: NDArray[np.int64] | None = None
     origin: BagOrigin | None = None
+    left_out: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
         arrays: dict[str, NDArray[np.generic]] = {
@@ -109,6 +113,8 @@ class Record:
             "tc1": self.tc1,
             "tc2": self.tc2,
         }
+        if self.left_out is not None:
+            arrays["left_out"] = self.left_out
         if self.ref is not None:
             arrays["ref"] = self.ref
         if self.stamps_ns is not None:
@@ -202,19 +208,38 @@ def validated_record(
     ref: NDArray[np.float64] | None,
     *,
     time_name: str,
+    names: tuple[str, str] = ("tc1", "tc2"),
+    where: Callable[[int], str] = lambda index: f"sample {index}",
     index_hint: str = "",
     frame_id: str = "",
     stamps_ns: NDArray[np.int64] | None = None,
     origin: BagOrigin | None = None,
+    screen: bool = True,
 ) -> Record:
-    """Check the time vector (strictly increasing, uniform) and build the record.
+    """Screen the samples, check the time vector (strictly increasing, uniform), build the record.
+
+    Repeated samples and invalid readings are left out, counted and named by
+    :func:`~tcomp_core.io.screening.screen_samples` (``names`` are the readings' columns or
+    topics, ``where`` names sample k of the file), the one boundary of every reader.
 
     Raises
     ------
     DataError
         Naming ``source``, ``time_name`` and the sample (``index_hint`` says how samples
-        map to the file).
+        map to the file); or as :func:`~tcomp_core.io.screening.screen_samples`.
     """
+    from .screening import screen_samples
+
+    left_out = None
+    if screen:
+        readings = list(zip(names, (tc1, tc2), strict=True))
+        screened = screen_samples(
+            source, time if stamps_ns is None else stamps_ns, readings, where
+        )
+        keep, tc1, tc2, left_out = screened.keep, screened.tc1, screened.tc2, screened.left_out
+        time = time[keep]
+        ref = None if ref is None else ref[keep]
+        stamps_ns = None if stamps_ns is None else stamps_ns[keep]
     # Integer stamps are checked as exact offsets from the first: absolute epoch seconds in
     # float64 resolve only ~0.2 µs, too coarse for the spacing check at kHz rates.
     relative = time if stamps_ns is None else (stamps_ns - stamps_ns[0]) / NS_PER_S
@@ -232,4 +257,5 @@ def validated_record(
         frame_id=frame_id,
         stamps_ns=stamps_ns,
         origin=origin,
+        left_out=left_out,
     )

@@ -140,7 +140,8 @@ class CsvStream:
 
     def __init__(self, path: Path, columns: tuple[str, str, str | None]) -> None:
         self.path = path
-        self.record = read_csv(path, columns=columns)
+        # Unscreened: the pair matcher drops and counts invalid readings, as from a bag.
+        self.record = read_csv(path, columns=columns, screen=False)
         self.topics = {
             role: topic
             for role, topic in zip(ROLES, DEFAULT_TOPICS, strict=True)

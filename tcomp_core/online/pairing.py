@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import parameters
 from ..errors import DataError
+from ..io.screening import VALID_RANGE_C
 
 __all__ = [
     "COUNTER_NAMES",
@@ -74,9 +75,9 @@ COUNTER_NAMES = (
     "discontinuities",
 )
 
-#: Physical range of a thermocouple reading by default, degrees C: absolute zero to 2 000 °C
-#: (above type K's and type N's range; type B/R/S reach 1 700-1 800 °C).
-DEFAULT_VALID_RANGE = (-273.15, 2000.0)
+#: Physical range of a thermocouple reading by default, degrees C: the one every reader uses
+#: (:data:`tcomp_core.io.screening.VALID_RANGE_C`).
+DEFAULT_VALID_RANGE = VALID_RANGE_C
 
 
 @dataclass
