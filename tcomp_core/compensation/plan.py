@@ -46,6 +46,7 @@ from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
 from ..effects.chain import SensorChain
 from ..errors import EstimationError
+from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 
 if TYPE_CHECKING:
     from ..diagnose import Diagnosis
@@ -287,21 +288,22 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
     ValueError
         If the diagnosis carries no fit context.
     EstimationError
-        If the first-order fit leaves τ1 or τ2 undetermined (on a bound of its range, or a 95 %
-        interval wider than :data:`MAX_TAU_INTERVAL_RATIO`): no first-order pair fits the
-        record (pure noise, unrelated signals), so nothing is compensated, as the first-order
-        path refuses it.
+        If the final fit, or the first-order fit a refused model falls back to, leaves τ1 or
+        τ2 undetermined (on a bound of its range, or a 95 % interval wider than
+        :data:`MAX_TAU_INTERVAL_RATIO`): nothing fits the record (pure noise, unrelated
+        signals), so nothing is compensated, as the first-order path refuses it.
     """
     if diagnosis.context is None:
         raise ValueError(f"{diagnosis.source}: the diagnosis carries no fit context")
-    _check_first_order(diagnosis)
     final = diagnosis.final
+    _check_determined(diagnosis, final, "fit" if final.effects else "first-order fit")
     expected = set(diagnosis.expected_physics)
     base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
     params = dict(final.params)
     pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
     refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt)
     if refusal:  # not trusted with the gas: every piece first order, on first order's tau
+        _check_determined(diagnosis, diagnosis.base, "first-order fit it falls back to")
         pieces = tuple(Piece(effect, "first order", refusal) for effect in final.effects)
         params |= {"tau1": base_taus[0], "tau2": base_taus[1]}
     return OutputModel(
@@ -320,22 +322,29 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
     )
 
 
-def _check_first_order(diagnosis: Diagnosis) -> None:
-    """Refuse a record whose first-order τ the data do not determine (see the caller)."""
-    base = diagnosis.base
+def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
+    """Refuse to compensate on a fit whose τ the data do not determine (see the caller)."""
     loose = []
     for name in ("tau1", "tau2"):
-        low, high = base.intervals.get(name, (math.nan, math.nan))
-        if name in base.at_bound or high > MAX_TAU_INTERVAL_RATIO * low:
-            loose.append(
-                f"{name} = {base.params[name]:.3g} s, 95 % interval {low:.3g}..{high:.3g}"
-            )
-    if loose:
-        raise EstimationError(
-            f"{diagnosis.source}: the first-order fit does not determine the time constants "
-            f"({'; '.join(loose)}): no first-order pair fits this record, so no gas is "
-            "compensated (are both signals thermocouples in one gas?)"
-        )
+        low, high = fit.intervals.get(name, (math.nan, math.nan))
+        if name in fit.at_bound or high > MAX_TAU_INTERVAL_RATIO * low:
+            loose.append(f"{name} = {fit.params[name]:.3g} s, 95 % interval {low:.3g}..{high:.3g}")
+    if not loose:
+        return
+    found = diagnosis.final.params
+    calibration = (
+        f"; the fit finds the sensors {100.0 * (found['gain'] - 1.0):+.3g} % apart in gain and "
+        f"{found['offset_c']:+.3g} °C in level (class 2 allows {100 * CLASS2_GAIN:g} % and "
+        f"{CLASS2_OFFSET_C:g} °C): correct "
+        "one sensor's calibration and rerun"
+        if {"gain", "offset_c"} <= found.keys()
+        else " (are both signals thermocouples in one gas?)"
+    )
+    raise EstimationError(
+        f"{diagnosis.source}: the {what} does not determine the time constants "
+        f"({'; '.join(loose)}): no first-order pair fits this record, so no gas is "
+        f"compensated{calibration}"
+    )
 
 
 def _refusal(

@@ -224,11 +224,13 @@ def test_process_with_effects_equals_the_node_given_the_same_model(ros_context, 
                 assert value == live_values[key], key
     assert offline_values["output_model"] == "first-order+conduction"
     assert offline_values["output_model_since"] == str(stamps[0])
-    # The compensated gas is far closer to the reference than first order's.
+    # The compensated gas is closer to the reference than first order's: 0.98 against 1.27 °C
+    # rms (first order was 5.9 °C before ml-eiv fitted the gain between the sensors, which
+    # takes up part of the supports' steady share).
     first = _bag_outputs_first_order(bag, tmp_path / "first", config)
     truth = _reference(bag)[: gas.size]
     later = slice(gas.size // 5, None)  # after the start-up of both
-    assert np.sqrt(np.mean((gas - truth)[later] ** 2)) < 0.5 * np.sqrt(
+    assert np.sqrt(np.mean((gas - truth)[later] ** 2)) < 0.85 * np.sqrt(
         np.mean((first - truth)[later] ** 2)
     )
 
