@@ -74,3 +74,17 @@ def test_readings_that_no_gain_reconciles_are_refused_with_their_disagreement():
     message = str(refused.value)
     assert "in level and" in message and "% in gain" in message
     assert "class 2" in message
+
+
+@pytest.mark.parametrize(("gain", "warned"), [(1.005, False), (1.03, True)])
+def test_a_gain_beyond_class_2_is_said_with_what_to_do(tmp_path, capsys, gain, warned):
+    from tcomp_core.cli import main
+    from tcomp_core.io import write_csv
+
+    pair = _pair("multisine", seed=6)
+    path = write_csv(tmp_path / "pair.csv", pair.time, gain * pair.tc1, pair.tc2)
+    assert main(["estimate", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert ("beyond IEC 60584 class 2" in err) is warned, err
+    if warned:
+        assert "differ by +3" in err and "% in gain" in err and "tcomp diagnose" in err

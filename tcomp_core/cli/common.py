@@ -232,7 +232,7 @@ def estimate_with(record: Record, args: argparse.Namespace, method: str) -> Esti
     """
     from ..estimators import PHI_METHODS, estimate
 
-    return estimate(
+    result = estimate(
         record.tc1,
         record.tc2,
         record.dt,
@@ -240,6 +240,36 @@ def estimate_with(record: Record, args: argparse.Namespace, method: str) -> Esti
         phi=args.phi if method in PHI_METHODS else 1.0,
         alpha=args.alpha if method == "tdr-kee" else None,
         prefilter_hz=args.prefilter_hz,
+    )
+    warn_beyond_class_2(record.source, result.params)
+    return result
+
+
+def warn_beyond_class_2(source: str, params: dict[str, float]) -> None:
+    """Warn when ml-eiv's fitted gain between the sensors lies beyond IEC 60584 class 2.
+
+    The gain is fitted with τ (:mod:`tcomp_core.estimators.mleiv`); beyond the tolerance, by
+    the calibration effect's margin, it takes up what the first-order model lacks (conduction
+    to the supports reads as a gain of 1.4 on ``bags/conduction_500hz``) or a miscalibration,
+    and the user is told which command finds out.
+    """
+    import warnings
+
+    from ..effects.calibration import CLASS2_GAIN, CLASS2_MARGIN
+    from ..errors import TcompWarning
+
+    gain = params.get("gain")
+    if gain is None or not abs(gain - 1.0) > CLASS2_MARGIN * CLASS2_GAIN:
+        return
+    warnings.warn(
+        f"{source}: the two readings differ by {100.0 * (gain - 1.0):+.3g} % in gain (and "
+        f"{params.get('offset_c', 0.0):+.3g} °C in level), beyond IEC 60584 class 2 "
+        f"({100 * CLASS2_GAIN:g} %): τ is first order's with that gain fitted. A gain that "
+        "large is a physical effect the first-order model lacks (conduction to the supports, "
+        "radiation) or a miscalibration: tcomp diagnose tells which, and --effects auto "
+        "compensates it",
+        TcompWarning,
+        stacklevel=2,
     )
 
 
