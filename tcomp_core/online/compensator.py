@@ -15,6 +15,11 @@
   (:mod:`.extended`, built by a job too).
 - Before the first accepted estimate, one is attempted every :data:`~.config.FIRST_ESTIMATE_ROWS`
   window rows, and the pairs are held (up to one window) to be reconstructed once it lands.
+- A learnt sample period that the stamps leave (:data:`RATE_CHANGE_STEPS` steps in a row at
+  another, common rate) is relearnt: the window, τ, the reconstruction and an output model
+  start afresh, as at start-up, and :attr:`OnlineCompensator.rate_note` says so until an
+  estimate at the new rate is accepted (the node's status is WARN meanwhile). A configured
+  ``sample_period_s`` is kept and the disagreement noted.
 """
 
 from __future__ import annotations
@@ -68,6 +73,12 @@ FIRST_AGREEMENT = 0.1
 RECENT_S = 60.0
 #: Landed estimate statuses kept for :meth:`OnlineCompensator.take_landed`.
 LANDED_KEPT = 16
+#: A learnt sample period is relearnt when this many steps in a row are off it by more than
+#: :data:`RATE_TOLERANCE` and agree with each other (a sensor driver switched rate or was
+#: restarted at another): a few hundredths of a second at the rates of a test cell.
+RATE_CHANGE_STEPS = 64
+#: Relative difference of a step from the period that counts as another rate.
+RATE_TOLERANCE = 0.25
 
 
 class OnlineCompensator:
@@ -142,6 +153,11 @@ class OnlineCompensator:
         #: Why the published gas is first order although output models were asked for, or
         #: what the caller last decided about the output model ('' when nothing to say).
         self.output_note = ""
+        #: The newest steps between pairs (ns), to notice a change of rate.
+        self._steps: deque[int] = deque(maxlen=RATE_CHANGE_STEPS)
+        #: A change of the inputs' rate not yet followed by an accepted estimate ('' when none).
+        self.rate_note = ""
+        self.rate_changes = 0
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -540,6 +556,8 @@ class OnlineCompensator:
         self.counters["pairs"] += stamps.size
         self._newest_stamp = int(stamps[-1])
         self._restarted = False
+        self._steps.extend((steps[1:] if fresh else steps)[-RATE_CHANGE_STEPS:].tolist())
+        self._notice_rate(stamps)
         if self._period is None:
             self._learning.append((stamps, first, second))
             if sum(batch[0].size for batch in self._learning) < PERIOD_LEARNING_SAMPLES:
@@ -551,6 +569,39 @@ class OnlineCompensator:
             self._learning = []
             self._period = float(np.median(np.diff(stamps))) * 1e-9
         return self._take(stamps, first, second, self._period)
+
+    def _notice_rate(self, stamps: NDArray[np.int64]) -> None:
+        """Relearn the period when the newest steps left it for another common rate."""
+        if self._period is None or len(self._steps) < RATE_CHANGE_STEPS:
+            return
+        steps = np.fromiter(self._steps, dtype=np.float64, count=len(self._steps))
+        period_ns = self._period * 1e9
+        new_ns = float(np.median(steps))
+        off = np.abs(steps - period_ns) > RATE_TOLERANCE * period_ns
+        common = np.abs(steps - new_ns) <= RATE_TOLERANCE * new_ns
+        if not (off.all() and common.mean() >= 0.9):
+            return
+        where = f"at stamp {int(stamps[0]) * 1e-9:.6f} s"
+        change = f"sample period {self._period:.6g} s -> about {new_ns * 1e-9:.6g} s {where}"
+        self._steps.clear()
+        if self._config.sample_period_s:
+            self.rate_note = f"stamps disagree with sample_period_s: {change}"
+            return
+        self.rate_changes += 1
+        self.rate_note = (
+            f"inputs changed rate ({change}): window, period, τ and reconstruction restarted"
+        )
+        had_model = self.output_model is not None
+        self.restart()
+        self._period = None
+        self._tau = None
+        self._reconstructor = None
+        self._extended = None
+        self._wanted_output = self._pending_output = self._building_output = None
+        self._next_first_attempt = FIRST_ESTIMATE_ROWS
+        self.recent = RecentPairs(PRIME_PAIRS)
+        if had_model:
+            self.output_note = "output model dropped: the inputs changed rate"
 
     def _take(
         self,
@@ -758,6 +809,7 @@ class OnlineCompensator:
         if status.accepted:
             status = self._trusted(status)
         if status.accepted and status.estimate is not None and self._period is not None:
+            self.rate_note = "" if self._estimator is not None else self.rate_note
             self._tau = (status.estimate.tau1, status.estimate.tau2)
             self._set_reconstructor()
             if self._runner.busy or self._running:

@@ -395,6 +395,8 @@ class HealthMonitor:
             # rely on it.
             message += f"; the published gas uses {model.name(causal_stream=True)}"
         notes = self._input_notes(counters, malformed_reasons)
+        if engine.rate_note:  # until an estimate at the new rate is accepted
+            notes.append(engine.rate_note)
         if notes:
             # Never hidden behind an OK: at least a WARN, appended to any other message.
             message = "; ".join(notes if level == Level.OK else [message, *notes])
