@@ -10,14 +10,17 @@ Every verb, ``tcomp process``, the replay node and the compensator node read and
 this package, so they accept and refuse the same files with the same one-line messages. Every
 error is a :class:`~tcomp_core.errors.DataError` naming the file, the column or topic, the
 sample (or the chunk and byte offset) and the value; a cut-off bag is read up to its last
-complete record with a :class:`~tcomp_core.errors.TruncatedInputWarning`.
+complete record with a :class:`~tcomp_core.errors.TruncatedInputWarning`, and invalid readings
+are left out with an :class:`~tcomp_core.errors.InvalidReadingsWarning`.
 
 Modules, one job each: :mod:`.record` (record type, names, stamps), :mod:`.paths` (CSV or bag,
 a bag's files, clearing an output), :mod:`.csvfile`, :mod:`.temperature` (the CDR codec),
 :mod:`.mcap_records` (records, read-ahead thread, decompression, CRC), :mod:`.mcap_read`
 (chunk-wise scanner), :mod:`.mcap_write` (chunk writer), :mod:`.bag`,
-:mod:`.stream` (chunk-by-chunk input of ``tcomp process``), :mod:`.qos`, :mod:`.dispatch`,
-:mod:`.diagnostics` (the ``DiagnosticArray`` encoder of the bags ``tcomp process`` writes).
+:mod:`.stream` (chunk-by-chunk input of ``tcomp process``), :mod:`.screening` (invalid
+readings and repeated times left out, the one boundary of both readers), :mod:`.qos`,
+:mod:`.dispatch`, :mod:`.diagnostics` (the ``DiagnosticArray`` encoder of the bags
+``tcomp process`` writes).
 """
 
 from __future__ import annotations
