@@ -19,6 +19,7 @@ from tcomp_core.cli.process import add_parser as add_process_command
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError, TcompError
 from tcomp_core.io import (
+    DEFAULT_COLUMNS,
     DEFAULT_TOPICS,
     McapScan,
     decode_payloads,
@@ -608,3 +609,26 @@ def test_the_bag_reads_back_the_same_compressed_or_not(tmp_path, flag, capsys):
         chunks = make_reader(handle).get_summary().chunk_indexes
     assert {chunk.compression for chunk in chunks} == {"zstd" if compress else ""}
     assert len(chunks) > 1
+
+
+@pytest.mark.parametrize("samples", [15_000, 25_000])
+def test_the_output_model_is_fitted_on_as_many_pairs_as_asked(tmp_path, samples):
+    """``--diagnose-samples`` was ignored: a CSV block handed one input after the other
+    overflowed the matcher's queue (2 000), and 2 000 pairs were fitted whatever it said."""
+    from tcomp_core.process.output_model import fit_stream_output_model
+
+    pair = simulate_pair("multisine", dt=5e-5, duration=1.5, noise_percent=1.0, seed=5)
+    path = write_csv(tmp_path / "fast.csv", pair.time, pair.tc1, pair.tc2)
+    fitted = fit_stream_output_model(
+        path,
+        (),
+        topics=DEFAULT_TOPICS,
+        columns=DEFAULT_COLUMNS,
+        samples=samples,
+        slop_ns=0,
+        queue_size=2000,
+        valid_range=(-273.15, 2000.0),
+        gap_factor=1.5,
+    )
+    assert fitted.record[0].size == samples
+    np.testing.assert_array_equal(fitted.record[1], pair.tc1[:samples])

@@ -10,6 +10,7 @@ the compensator node publishes once it is handed the model.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator, Mapping
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,11 +20,15 @@ from numpy.typing import NDArray
 
 from ..compensation import OutputModel, fit_output_model
 from ..errors import DataError
-from ..io import Record, open_stream
+from ..io import Record, TemperatureBatch, open_stream
 from ..online import PairMatcher, Pairs
 from ..online.extended import longest_stretch
 
 __all__ = ["FittedOutput", "fit_stream_output_model"]
+
+#: The two inputs' samples reach the matcher in stamp slices of at most this fraction of its
+#: queue each.
+_SLICE_OF_QUEUE = 0.25
 
 
 @dataclass(frozen=True)
@@ -81,13 +86,11 @@ def fit_stream_output_model(
     # Leaving the reading early closes it at once (its read-ahead thread and files).
     with closing(blocks):  # type: ignore[type-var]  # a generator has close()
         for block in blocks:
-            for role, index in (("tc1", 0), ("tc2", 1)):
-                batch = block.series.get(role)
-                if batch is not None and len(batch):
-                    pairs = matcher.add_batch(index, batch.stamps_ns, batch.temperature)
-                    if len(pairs):
-                        parts.append(pairs)
-                        matched += len(pairs)
+            for index, stamps, values in _interleaved(block.series, queue_size):
+                pairs = matcher.add_batch(index, stamps, values)
+                if len(pairs):
+                    parts.append(pairs)
+                    matched += len(pairs)
             if matched >= samples:
                 break
     if not parts:
@@ -108,3 +111,32 @@ def fit_stream_output_model(
     )
     model = fit_output_model(record, effects)
     return FittedOutput(model, int(stamps[0]), (stamps, tc1, tc2), time.perf_counter() - started)
+
+
+def _interleaved(
+    series: Mapping[str, TemperatureBatch], queue_size: int
+) -> Iterator[tuple[int, NDArray[np.int64], NDArray[np.float64]]]:
+    """A block's tc1 and tc2 samples as (input index, stamps, values), interleaved by stamp.
+
+    A block holds each input's samples whole (a CSV block: 100 000 rows); handed over one
+    input after the other, the first would overflow the matcher's queue and all but its newest
+    ``queue_size`` samples would be dropped (``--diagnose-samples`` fitted 2 000 pairs whatever
+    it said). Slices up to the same stamp, a fraction of the queue each, keep them paired.
+    """
+    batches = [series.get(role) for role in ("tc1", "tc2")]
+    present = [batch for batch in batches if batch is not None and len(batch)]
+    if not present:
+        return
+    step = max(1, int(_SLICE_OF_QUEUE * queue_size))
+    leader = max(present, key=len).stamps_ns
+    bounds = [*leader[step::step].tolist(), None]
+    starts = [0, 0]
+    for bound in bounds:
+        for index, batch in enumerate(batches):
+            if batch is None or not len(batch):
+                continue
+            stop = len(batch) if bound is None else int(np.searchsorted(batch.stamps_ns, bound))
+            if stop > starts[index]:
+                part = slice(starts[index], stop)
+                yield index, batch.stamps_ns[part], batch.temperature[part]
+                starts[index] = stop
