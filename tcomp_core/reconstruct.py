@@ -53,13 +53,17 @@ class Reconstruction:
     postfilter_hz: float | None = None
 
 
+def _noise_variance(a: float) -> float:
+    """Variance of Eq. (7)'s reconstruction noise per unit reading variance: (1 + a²)/(1 - a)²."""
+    return (1.0 + a**2) / (1.0 - a) ** 2
+
+
 def combination_weight(
     a1: float, a2: float, phi: float = 1.0, combine: Combination = "inverse-variance"
 ) -> float:
     """Weight of the thermocouple-1 reconstruction in the combined estimate T̂_g3."""
     if combine == "inverse-variance":
-        variance1 = phi * (1.0 + a1**2) / (1.0 - a1) ** 2
-        variance2 = (1.0 + a2**2) / (1.0 - a2) ** 2
+        variance1, variance2 = phi * _noise_variance(a1), _noise_variance(a2)
         return variance2 / (variance1 + variance2)
     if combine == "mean":
         return 0.5
@@ -76,8 +80,7 @@ def noise_gain(a1: float, a2: float, weight1: float) -> float:
     Each reconstruction's noise has variance (1 + a_i²)/(1 - a_i)² σ²; the combination weighs
     them by ``weight1`` and 1 - ``weight1``.
     """
-    variance1 = (1.0 + a1**2) / (1.0 - a1) ** 2
-    variance2 = (1.0 + a2**2) / (1.0 - a2) ** 2
+    variance1, variance2 = _noise_variance(a1), _noise_variance(a2)
     return float(np.sqrt(weight1**2 * variance1 + (1.0 - weight1) ** 2 * variance2))
 
 

@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import parameters
 from ..errors import DataError
-from ..io.screening import VALID_RANGE_C
+from ..io.screening import VALID_RANGE_C, invalid_readings
 
 __all__ = [
     "COUNTER_NAMES",
@@ -499,10 +499,7 @@ class PairMatcher:
         else:  # min/max are NaN if any value is: an all-good batch costs two reductions
             some_bad = bool(vals.size) and not (valid[0] <= vals.min() and vals.max() <= valid[1])
         if some_bad:
-            # Within a finite range is False for NaN and ±inf too.
-            finite = (
-                np.isfinite(vals) if valid is None else (vals >= valid[0]) & (vals <= valid[1])
-            )
+            finite = np.isfinite(vals) if valid is None else ~invalid_readings(vals, valid)
             bad = stamps[~finite]
             counters.invalid[index] += int(bad.size)
             counters.last_invalid_ns[index] = int(bad[-1])
