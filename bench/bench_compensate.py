@@ -58,6 +58,7 @@ from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.effects.chain import fractional_shift
+from tcomp_core.estimators import estimate
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
 from tcomp_core.simulate_effects import simulate_effect
@@ -102,13 +103,16 @@ def compare(
     full_band: bool = False,
     causal_too: bool = True,
     ungated_too: bool = False,
+    default_too: bool = False,
 ) -> dict:
     """Verdict, e_Tg and offset of the four reconstructions of one record.
 
     With ``full_band`` the smoother's e_Tg is also given unfiltered (``smoother_*_full``);
     without ``causal_too`` only the smoother's reconstructions are made; ``ungated_too`` adds
     the smoother's gas of the final fit applied without the identification rule
-    (``smoother_ungated``, the behaviour before it).
+    (``smoother_ungated``, the behaviour before it); ``default_too`` the gas of the default
+    path (``smoother_default``: ml-eiv's τ, fitted with the sensors' gain, and the smoother),
+    what ``tcomp reconstruct`` gives without ``--effects``.
     """
     started = time.perf_counter()
     diagnosis = diagnose(record)
@@ -147,6 +151,13 @@ def compare(
         if full_band and not causal:
             row[f"{key}_first_full"] = scores(record, first.gas, None, held)[0]
             row[f"{key}_final_full"] = scores(record, extended.gas, None, held)[0]
+    if default_too:
+        # What a user gets with no option: ml-eiv (with the sensors' gain) and the smoother.
+        plain = estimate(record.tc1, record.tc2, record.dt)
+        gas = fuse(record.tc1, record.tc2, record.dt, plain.tau1, plain.tau2).gas
+        row["tau_default"] = [plain.tau1, plain.tau2]
+        row["smoother_default"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]
+        row["smoother_default_full"] = scores(record, gas, None, held)[0]
     row["seconds"] = time.perf_counter() - started
     return row
 
@@ -240,13 +251,16 @@ def campaign_row(index: int) -> dict:
     row["forms"] = item.forms
     try:
         record, truth = campaign_draws.simulate(item)
-        row |= compare(record, None, full_band=True, causal_too=False, ungated_too=True)
+        row |= compare(
+            record, None, full_band=True, causal_too=False, ungated_too=True, default_too=True
+        )
     except Exception as exc:  # a failure is a result of the campaign, not its end
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
     row["tau_truth"] = [truth["tau1"], truth["tau2"]]
     row["tau_base_err_pct"] = campaign_draws.tau_errors_pct(truth, *row["tau"][:2])
     row["tau_final_err_pct"] = campaign_draws.tau_errors_pct(truth, *row["tau"][2:])
+    row["tau_default_err_pct"] = campaign_draws.tau_errors_pct(truth, *row["tau_default"])
     return row
 
 
@@ -345,21 +359,30 @@ def summarise_campaign(rows: list[dict]) -> None:
     for label, group in (("clean", clean), ("single", single), ("pairs", pairs)):
         base = [_quantiles([r["tau_base_err_pct"][i] for r in group]) for i in (0, 1)]
         final = [_quantiles([r["tau_final_err_pct"][i] for r in group]) for i in (0, 1)]
+        plain = [
+            _quantiles([r["tau_default_err_pct"][i] for r in group if "tau_default_err_pct" in r])
+            for i in (0, 1)
+        ]
         print(
             f"  {label:<8} first order tau1 {base[0]}, tau2 {base[1]}; "
+            f"default tau1 {plain[0]}, tau2 {plain[1]}; "
             f"final tau1 {final[0]}, tau2 {final[1]}"
         )
-    print("\ngas e_Tg against the truth, first order -> compensated")
+    print("\ngas e_Tg against the truth, first order (the diagnosis's / the default path's) ->")
+    print("compensated")
     print(f"{'':<24}{'worse (>1.1x, >0.1 pt)':>24}{'median fall, effect >= 1 %':>30}")
     for (first, final), name in (
         (("smoother_first", "smoother_final"), "signal band"),
         (("smoother_first_full", "smoother_final_full"), "full band"),
         (("smoother_first", "smoother_ungated"), "signal band, unchecked"),
         (("smoother_first_full", "smoother_ungated_full"), "full band, unchecked"),
+        (("smoother_default", "smoother_final"), "signal band, default"),
+        (("smoother_default_full", "smoother_final_full"), "full band, default"),
     ):
         output = "ungated_output" if "ungated" in final else "output"
-        worse = [r for r in rows if campaign_draws.materially_worse(r[first], r[final])]
-        effect_rows = [r for r in rows if r["truth"] and r[first] >= 1.0]
+        scored = [r for r in rows if first in r]  # draws run before a reference was added lack it
+        worse = [r for r in scored if campaign_draws.materially_worse(r[first], r[final])]
+        effect_rows = [r for r in scored if r["truth"] and r[first] >= 1.0]
         falls = [r[first] / r[final] if r[final] > 0 else math.inf for r in effect_rows]
         median = statistics.median(falls) if falls else math.nan
         print(f"{name:<24}{len(worse):>24}{median:>26.2f}x ({len(falls)})")

@@ -50,7 +50,7 @@ class NoiseEstimate:
 
 
 def _welch(values: NDArray[np.float64], dt: float) -> tuple[NDArray, NDArray, int]:
-    nperseg = int(min(_SEGMENT, max(16, values.size // 8)))
+    nperseg = int(min(_SEGMENT, max(16, values.size // 8), values.size))
     # scipy-stubs 1.17 spells the detrend option "linear" as "literal".
     freqs, psd = signal.welch(  # type: ignore[call-overload]
         values, fs=1.0 / dt, nperseg=nperseg, detrend="linear"
@@ -136,7 +136,7 @@ def _difference_spectra(
     undoes the difference. Returns (frequencies in Hz, S_xx, S_xy), one-sided, units²/Hz.
     """
     step_x, step_y = np.diff(x), np.diff(y)
-    nperseg = int(min(_SEGMENT, max(16, step_x.size // 8)))
+    nperseg = int(min(_SEGMENT, max(16, step_x.size // 8), step_x.size))
     options = {"fs": 1.0 / dt, "nperseg": nperseg, "detrend": "constant"}
     freqs, auto = signal.welch(step_x, **options)  # type: ignore[call-overload]
     _, cross = signal.csd(step_x, step_y, **options)  # type: ignore[call-overload]

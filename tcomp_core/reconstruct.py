@@ -84,6 +84,25 @@ def noise_gain(a1: float, a2: float, weight1: float) -> float:
     return float(np.sqrt(weight1**2 * variance1 + (1.0 - weight1) ** 2 * variance2))
 
 
+def gas_noise_variance(
+    a1: float, a2: float, weight1: float, sigma1: float, sigma2: float
+) -> float:
+    """Variance of Eq. (7)'s combined gas from the readings' white noise, (degrees C)².
+
+    Parameters
+    ----------
+    a1, a2 : float
+        Poles exp(-dt/τi) of the two sensors.
+    weight1 : float
+        Weight of T̂_g1 in the combination.
+    sigma1, sigma2 : float
+        Noise standard deviations of the two readings, degrees C.
+    """
+    variance1 = _noise_variance(a1) * sigma1**2
+    variance2 = _noise_variance(a2) * sigma2**2
+    return float(weight1**2 * variance1 + (1.0 - weight1) ** 2 * variance2)
+
+
 def reconstruct(
     tc1: ArrayLike,
     tc2: ArrayLike,

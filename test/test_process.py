@@ -312,7 +312,7 @@ def test_csv_in_and_out(tmp_path):
     result = process(source, tmp_path / "out.csv", FAST)
     with (tmp_path / "out.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert list(rows[0]) == ["time", "tc1", "tc2", "ref", "gas", "tau1", "tau2"]
+    assert list(rows[0]) == ["time", "tc1", "tc2", "ref", "gas", "gas_variance", "tau1", "tau2"]
     assert len(rows) == record.time.size == result.pairs
     filled = [r for r in rows if r["gas"]]
     assert len(filled) == result.gas
@@ -321,6 +321,11 @@ def test_csv_in_and_out(tmp_path):
     gas = np.array([float(r["gas"]) for r in filled])
     ref = np.array([float(r["ref"]) for r in filled])
     assert np.sqrt(np.mean((gas - ref)[len(gas) // 2 :] ** 2)) < 0.2 * np.std(ref)
+    # Each gas value comes with its variance; the start-up's wide errors are marked by it.
+    std = np.sqrt([float(r["gas_variance"]) for r in filled])
+    assert np.all(std > 0)
+    assert std[:5].min() > np.median(std)
+    assert np.mean(np.abs(gas - ref) > 4 * std) < 0.01
     # CSV in, bag out: the inputs are encoded on the default topics.
     process(source, tmp_path / "bag", FAST)
     back = read_bag(tmp_path / "bag")

@@ -41,8 +41,8 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
         "--update-period-s of stamp time), reconstruct the gas temperature and write a new "
         "bag with the input topics, /gas_temperature, /diagnostics (the node's status, one "
         "per second of stamp time) and /diagnosis (the verdict); or, when OUTPUT ends in .csv, "
-        "the columns "
-        "time,tc1,tc2[,ref],gas,tau1,tau2. A directory of bags is processed into a directory, "
+        "the columns time,tc1,tc2[,ref],gas,gas_variance,tau1,tau2. A directory of bags is "
+        "processed into a directory, "
         "--jobs at a time.",
     )
     parser.add_argument(

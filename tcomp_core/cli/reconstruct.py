@@ -131,10 +131,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
-    """``reconstruct --reconstruction difference``: Eq. (7) and the combination."""
+    """``reconstruct --reconstruction difference``: Eq. (7) and the combination.
+
+    Without a post-filter the gas's variance (the readings' white noise through Eq. 7,
+    :func:`~tcomp_core.reconstruct.gas_noise_variance`) is written with it.
+    """
+    import numpy as np
+
     from ..estimators.mleiv import phi_from_data
     from ..metrics import reconstruction_error_percent
-    from ..reconstruct import noise_gain, reconstruct
+    from ..noise import model_noise
+    from ..reconstruct import gas_noise_variance, noise_gain, reconstruct
 
     recon = reconstruct(
         record.tc1,
@@ -152,13 +159,18 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
         time=record.time,
     )
     count = recon.gas.size
-    written, ref = _write_gas(args, record, recon.gas)
+    poles = math.exp(-record.dt / tau1), math.exp(-record.dt / tau2)
+    variance = None
+    if args.postfilter_hz is None:  # white noise through Eq. 7 alone: its variance is known
+        noise1, noise2 = model_noise(record.tc1, record.tc2, record.dt, tau1, tau2)
+        spread = gas_noise_variance(*poles, recon.weight1, noise1.sigma, noise2.sigma)
+        variance = np.full(count, spread)
+    written, ref = _write_gas(args, record, recon.gas, variance)
     print(
         f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples "
         f"(the last sample has no successor to reconstruct from), weight of tc1 "
         f"{recon.weight1:.3f}"
     )
-    poles = math.exp(-record.dt / tau1), math.exp(-record.dt / tau2)
     gain = noise_gain(*poles, recon.weight1)
     if args.postfilter_hz is None and gain >= NOISE_GAIN_WARNING:
         warnings.warn(

@@ -261,7 +261,7 @@ def _gas_change_autocovariance(fit: _Fitting) -> NDArray[np.float64]:
     stop band of a band-limited gas stays empty). The change's spectrum is S_g |1 - e^(-iω)|².
     """
     count = fit.y.shape[1]
-    nperseg = int(min(AR_SEGMENT, max(32, count // 4)))
+    nperseg = int(min(AR_SEGMENT, max(32, count // 4), count))
     freqs, cross = signal.csd(fit.y[0], fit.y[1], fs=1.0 / fit.base.dt, nperseg=nperseg)
     omega = 2.0 * math.pi * freqs * fit.base.dt
     poles = tau_to_pole([fit.base.tau1, fit.base.tau2], fit.base.dt)

@@ -134,7 +134,8 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
         ``signal_model`` (the Kalman filter's, ``(interim)`` until the fitted one lands; ''
         for Eq. 7), ``signal_model_note`` (what could not be fitted and what is used
         instead), ``tracking_memory_s``, ``window_samples``, ``window_s``,
-        ``sample_period_s``, ``gaps``, ``fit_error_pct``, ``noise_floor_pct``,
+        ``sample_period_s``, ``gaps``, ``rate_changes`` (times the stamps' rate changed and
+        the window restarted), ``fit_error_pct``, ``noise_floor_pct``,
         ``model_error_pct``, ``condition``, ``latest_tau1_s``, ``latest_tau2_s``, the 95 %
         intervals ``tau{1,2}_ci_{low,high}_s`` (nan for estimators without them),
         ``estimate_accepted`` and ``last_reason``.
@@ -158,6 +159,7 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
         "window_s": format_value(config.window_s),
         "sample_period_s": format_value(engine.period_s or math.nan),
         "gaps": str(engine.counters["gaps"]),
+        "rate_changes": str(engine.rate_changes),
         "fit_error_pct": format_value(status.fit_error_pct if status else math.nan),
         "noise_floor_pct": format_value(status.noise_floor_pct if status else math.nan),
         "model_error_pct": format_value(status.model_error_pct if status else math.nan),

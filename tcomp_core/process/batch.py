@@ -117,8 +117,9 @@ def format_summary(outcomes: Sequence[Outcome]) -> str:
             continue
         tau1, tau2 = result.tau if result.tau else (math.nan, math.nan)
         share = f"{result.diagnosis_seconds:.2f} s" if result.verdict != "skipped" else "skipped"
+        verdict = _verdict_cell(result.verdict)
         lines.append(
-            f"{name} {result.pairs:>10} {tau1:>10.5g} {tau2:>10.5g} {result.verdict[:12]:<12} "
+            f"{name} {result.pairs:>10} {tau1:>10.5g} {tau2:>10.5g} {verdict:<12} "
             f"{result.seconds:>8.2f} {share:>10} {result.pairs_per_s:>10.4g}"
         )
     for outcome in outcomes:
@@ -135,3 +136,8 @@ def format_summary(outcomes: Sequence[Outcome]) -> str:
                 f"{'; ' + pieces if pieces else ''})"
             )
     return "\n".join(lines)
+
+
+def _verdict_cell(verdict: str) -> str:
+    """The verdict in the table's 12 characters; why a diagnosis failed is in the warnings."""
+    return "failed" if verdict.startswith("failed") else verdict[:12]

@@ -9,10 +9,11 @@ the newest stamp of the window) and :data:`DIAGNOSIS_TOPIC` (one DiagnosticArray
 diagnosis verdict, logged at the last stamp). The derived topics, and inputs read from CSV,
 are offered reliable, keep-last-10, volatile, as :func:`tcomp_core.io.write_bag` does.
 
-CSV columns: ``time,tc1,tc2[,ref],gas,tau1,tau2``, one row per matched pair (``time`` in
-seconds, ``sec + nanosec / 1e9`` of the stamp); ``gas`` is empty where no gas sample was
-reconstructed (the first pair, a gap, before the first τ), ``tau1``/``tau2`` are the time
-constants that reconstructed it.
+CSV columns: ``time,tc1,tc2[,ref],gas,gas_variance,tau1,tau2``, one row per matched pair
+(``time`` in seconds, ``sec + nanosec / 1e9`` of the stamp); ``gas`` is empty where no gas
+sample was reconstructed (the first pair, a gap, before the first τ), ``gas_variance`` is its
+variance in (degrees C)² as the gas messages carry it, ``tau1``/``tau2`` are the time constants
+that reconstructed it.
 """
 
 from __future__ import annotations
@@ -234,9 +235,19 @@ class CsvOutput:
         self._handle = path.open("w", newline="", encoding="utf-8")
         self._writer = csv.writer(self._handle, lineterminator="\n")
         self._with_ref = with_ref
-        header = ["time", "tc1", "tc2", *(["ref"] if with_ref else []), "gas", "tau1", "tau2"]
+        header = [
+            "time",
+            "tc1",
+            "tc2",
+            *(["ref"] if with_ref else []),
+            "gas",
+            "gas_variance",
+            "tau1",
+            "tau2",
+        ]
         self._writer.writerow(header)
-        self._rows: list[NDArray[np.float64]] = []  # columns tc1, tc2, ref, gas, τ1, τ2
+        # columns tc1, tc2, ref, gas, its variance, τ1, τ2
+        self._rows: list[NDArray[np.float64]] = []
         self._stamps: list[NDArray[np.int64]] = []
         self.keep_rows = 1 << 20
         self.counts = {"rows": 0, "gas": 0}
@@ -260,7 +271,7 @@ class CsvOutput:
         """Queue matched pairs (stamps in ns, degrees C)."""
         if stamps_ns.size:
             nan = np.full(stamps_ns.size, np.nan)
-            self._rows.append(np.column_stack((tc1, tc2, ref, nan, nan, nan)))
+            self._rows.append(np.column_stack((tc1, tc2, ref, nan, nan, nan, nan)))
             self._stamps.append(stamps_ns)
 
     def gas(
@@ -276,7 +287,7 @@ class CsvOutput:
 
         ``fed_to_ns`` is the newest stamp given to the compensator so far.
         """
-        del variance, frame_id
+        del frame_id
         stamps, rows = self._queued()
         if stamps.size:
             # The nearest queued stamp: the compensator passes the stamps of the pairs it
@@ -291,8 +302,9 @@ class CsvOutput:
             )
             hit = np.abs(stamps[at] - stamps_ns) <= STAMP_TOLERANCE_NS
             rows[at[hit], 3] = gas[hit]
+            rows[at[hit], 4] = variance[hit]
             if tau is not None:
-                rows[at[hit], 4], rows[at[hit], 5] = tau
+                rows[at[hit], 5], rows[at[hit], 6] = tau
             self.counts["gas"] += int(hit.sum())
         self._flush(int(stamps_ns[-1]) if stamps_ns.size else None, fed_to_ns)
 
@@ -301,7 +313,7 @@ class CsvOutput:
             self._rows = [np.concatenate(self._rows)]
             self._stamps = [np.concatenate(self._stamps)]
         if not self._rows:
-            return np.empty(0, np.int64), np.empty((0, 6))
+            return np.empty(0, np.int64), np.empty((0, 7))
         return self._stamps[0], self._rows[0]
 
     def _flush(
@@ -324,7 +336,7 @@ class CsvOutput:
     def _write(self, stamps: NDArray[np.int64], rows: NDArray[np.float64]) -> None:
         seconds, nanoseconds = np.divmod(stamps, _NS_PER_S)
         time = seconds.astype(np.float64) + nanoseconds / _NS_PER_S
-        keep = [0, 1, 2, 3, 4, 5] if self._with_ref else [0, 1, 3, 4, 5]
+        keep = [0, 1, 2, 3, 4, 5, 6] if self._with_ref else [0, 1, 3, 4, 5, 6]
         columns = [time, *(rows[:, k] for k in keep)]
         self._writer.writerows(
             [("" if isinstance(v, float) and math.isnan(v) else v) for v in row]

@@ -94,7 +94,17 @@ def fit_stream_output_model(
             if matched >= samples:
                 break
     if not parts:
-        raise DataError(f"{source}: no tc1/tc2 pairs to fit the output model on")
+        invalid = matcher.counters.as_dict()
+        why = ", ".join(
+            f"{invalid[f'invalid_{name}']} {name}"
+            for name in ("tc1", "tc2")
+            if invalid[f"invalid_{name}"]
+        )
+        low, high = valid_range
+        raise DataError(
+            f"{source}: no tc1/tc2 pairs to fit the output model on"
+            + (f" ({why} readings not finite or outside {low:g}..{high:g} degC)" if why else "")
+        )
     pairs = Pairs.concatenate(parts)
     stamps, tc1, tc2 = longest_stretch(
         [pairs.stamps_ns[:samples], pairs.tc1[:samples], pairs.tc2[:samples]], gap_factor
@@ -106,11 +116,21 @@ def fit_stream_output_model(
         tc1=tc1,
         tc2=tc2,
         ref=None,
-        source=f"{source} (first {stamps.size} pairs)",
+        source=_stretch_name(source, stamps.size, min(samples, len(pairs))),
         dt=float(np.median(np.diff(stamps))) * 1e-9,
     )
     model = fit_output_model(record, effects)
     return FittedOutput(model, int(stamps[0]), (stamps, tc1, tc2), time.perf_counter() - started)
+
+
+def _stretch_name(source: Path, stretch: int, first: int) -> str:
+    """How the fitted record is named in messages: which pairs of ``source`` it holds."""
+    if stretch == first:
+        return f"{source} (first {first} pairs)"
+    return (
+        f"{source} (the longest stretch without a gap in its first {first} pairs: {stretch} "
+        "pairs; dropped readings and gaps in the stamps cut it)"
+    )
 
 
 def _interleaved(

@@ -51,6 +51,9 @@ __all__ = ["ProcessConfig", "ProcessResult", "process"]
 
 #: Shortest gap-free stretch the diagnosis is run on, samples.
 MIN_DIAGNOSIS_SAMPLES = 1000
+#: Share of the pairs left without a gas above which the run says so and why (the last pair,
+#: held for the next one, and the start before a first estimate lands are ordinary).
+MISSING_GAS_WARNING = 0.01
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -262,6 +265,28 @@ def _dropped_warnings(source: Path, counters: PairCounters) -> list[str]:
     return warnings
 
 
+def _stream_warnings(source: Path, pairs: int, engine: Engine) -> list[str]:
+    """What a user must know about the published gas: pairs left without one, rate changes."""
+    compensator = engine.compensator
+    warnings = []
+    if compensator.rate_changes:
+        warnings.append(
+            f"{source}: the sample rate changed {compensator.rate_changes} time(s); the window, "
+            "tau and the reconstruction restarted at each (see the /diagnostics statuses)"
+        )
+    missing = pairs - engine.published
+    if missing > MISSING_GAS_WARNING * pairs:
+        status = compensator.last_status
+        if compensator.published_tau is None:
+            why = "no estimate of tau1, tau2 was accepted"
+            if status is not None and status.reason:
+                why += f" (the last: {status.reason})"
+        else:
+            why = "gaps in the stamps, screened readings, or before an estimate was accepted"
+        warnings.append(f"{source}: no gas for {missing} of {pairs} pairs: {why}")
+    return warnings
+
+
 class _RefJoin:
     """Attach the reference sample of each pair's stamp (NaN where there is none).
 
@@ -421,9 +446,13 @@ def _run(
     consume(schedule.finish())
     engine.matcher.discard_pending()
     pairs = engine.counters.matched
-    if pairs == 0:
-        raise DataError(f"{source}: no tc1/tc2 samples with identical stamps: nothing to process")
     warnings = _dropped_warnings(source, engine.counters)
+    if pairs == 0:
+        why = "; ".join(warning.removeprefix(f"{source}: ") for warning in warnings)
+        raise DataError(
+            f"{source}: no tc1/tc2 pair to process"
+            + (f": {why}" if why else " (no samples with identical stamps)")
+        )
     truncation = reader.truncation
     if truncation is not None:
         where = "; ".join(
@@ -438,6 +467,9 @@ def _run(
         verdict, diagnosis, level = _diagnose(tail, source, config.online.gap_factor)
         last_stamp = max(stamp for _, stamp in last_good.values())
         sink.diagnosis(last_stamp, level, f"diagnosis verdict: {verdict}", diagnosis)
+        if verdict.startswith("failed: "):
+            warnings.append(f"{source}: the diagnosis {verdict}")
+    warnings += _stream_warnings(source, pairs, engine)
     diagnosis_seconds = time.perf_counter() - diagnosis_started if config.diagnose else 0.0
     sink.close()
     counters: dict[str, Any] = {**engine.counters.as_dict(), **engine.compensator.counters}
