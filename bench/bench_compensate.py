@@ -53,7 +53,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from tcomp_core.compensation import compensate, output_model_from_diagnosis
+from tcomp_core.compensation import compensate, default_taus, output_model_from_diagnosis
 from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
@@ -116,7 +116,12 @@ def compare(
     """
     started = time.perf_counter()
     diagnosis = diagnose(record)
-    output = output_model_from_diagnosis(diagnosis, origin_s=float(record.time[0]))
+    # As fit_output_model builds it for reconstruct and process: the default path's τ where
+    # the model applies nothing.
+    plain_taus = default_taus(record)
+    output = output_model_from_diagnosis(
+        diagnosis, origin_s=float(record.time[0]), first_order_taus=plain_taus
+    )
     base = diagnosis.base
     found = diagnosis.final.identification
     row = {
@@ -131,7 +136,9 @@ def compare(
     if ungated_too:
         # The output model as it was before the identification rule: the same fit, unchecked.
         unchecked = replace(diagnosis, final=replace(diagnosis.final, identification=None))
-        ungated = output_model_from_diagnosis(unchecked, origin_s=float(record.time[0]))
+        ungated = output_model_from_diagnosis(
+            unchecked, origin_s=float(record.time[0]), first_order_taus=plain_taus
+        )
         row["ungated_output"] = ungated.name()
         gas = compensate(ungated, record.time, record.tc1, record.tc2, record.dt).gas
         row["smoother_ungated"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]

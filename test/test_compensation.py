@@ -371,3 +371,52 @@ def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
     sim = simulate_effect(None, "multisine", duration=4.0, noise_percent=1.0, seed=3)
     good = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="good", dt=sim.dt)
     assert fit_output_model(good, ()).effects == ()
+
+
+def test_nothing_applied_falls_back_to_the_default_paths_tau():
+    """The gas of a model that undoes nothing is the default path's (ml-eiv, fitted with the
+    sensors' gain), not the diagnosis's own first order: on fresh campaign draws that was
+    12.98 against 66.28 % (radiation read as nothing), 4.78 against 7.99 % (a clean pair)."""
+    from tcomp_core.compensation import output_model_from_diagnosis
+
+    plain = (0.021, 0.098)
+    nothing = _diagnosis_with(("property",), {}, ("property",))  # ordinary: first order
+    model = output_model_from_diagnosis(nothing, first_order_taus=plain)
+    assert model.applied() == ()
+    assert (model.tau1, model.tau2) == plain
+    # Without the default path's τ the diagnosis's base fit is used, as before.
+    model = output_model_from_diagnosis(nothing)
+    assert (model.tau1, model.tau2) == (nothing.base.tau1, nothing.base.tau2)
+    # What is applied keeps the τ fitted with it.
+    applied = output_model_from_diagnosis(
+        _diagnosis_with(("conduction",), {}, ()), first_order_taus=plain
+    )
+    assert applied.applied() == ("conduction",) and (applied.tau1, applied.tau2) != plain
+
+
+def test_a_fit_that_leaves_tau_loose_falls_back_instead_of_refusing():
+    """A final fit whose τ the data do not pin down is not applied; with the default path's
+    τ at hand the gas falls back to it instead of refusing the record (draws 45 and 50 of the
+    campaign: conduction with a delay at 10-20 kHz were refused outright)."""
+    from tcomp_core.compensation import output_model_from_diagnosis
+    from tcomp_core.errors import EstimationError
+
+    loose = _diagnosis_with(("conduction",), {}, ())
+    loose.final.intervals = {"tau1": (0.001, 5.0), "tau2": (0.09, 0.11)}
+    with pytest.raises(EstimationError, match="does not determine the time constants"):
+        output_model_from_diagnosis(loose)
+    model = output_model_from_diagnosis(loose, first_order_taus=(0.021, 0.098))
+    assert model.applied() == ()
+    assert "does not determine the time constants" in model.pieces[0].reason
+    assert (model.tau1, model.tau2) == (0.021, 0.098)
+
+
+def test_fit_output_model_gives_the_default_paths_tau_when_nothing_is_found():
+    from tcomp_core.compensation import default_taus, fit_output_model
+    from tcomp_core.io import Record
+
+    sim = simulate_effect(None, "multisine", duration=4.0, noise_percent=1.0, seed=5)
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="clean", dt=sim.dt)
+    model = fit_output_model(record, ())
+    assert model.applied() == ()
+    assert (model.tau1, model.tau2) == default_taus(record)

@@ -58,6 +58,7 @@ __all__ = [
     "FIRST_ORDER",
     "OutputModel",
     "Piece",
+    "default_taus",
     "fit_output_model",
     "output_model_from_diagnosis",
     "parse_compensate_effects",
@@ -273,7 +274,11 @@ def _piece(effect: str, expected: bool, intervals: Mapping[str, tuple[float, flo
     return Piece(effect, handling, reason)
 
 
-def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> OutputModel:
+def output_model_from_diagnosis(
+    diagnosis: Diagnosis,
+    origin_s: float = 0.0,
+    first_order_taus: tuple[float, float] | None = None,
+) -> OutputModel:
     """The output model of a diagnosis's (or fit's) final model.
 
     Parameters
@@ -282,6 +287,11 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
         From :func:`tcomp_core.diagnose.diagnose` or :func:`~tcomp_core.diagnose.fit_effects`.
     origin_s : float
         Time of the diagnosed record's sample 0 on the caller's time base, s.
+    first_order_taus : (float, float), optional
+        τ1, τ2 of the default first-order path on the same record (ml-eiv, which fits the
+        sensors' gain; :func:`fit_output_model` gives them), s: the gas falls back to them when
+        the model applies nothing, or when its fit does not determine τ. Without them it falls
+        back to the diagnosis's own first-order fit (no gain between the sensors).
 
     Raises
     ------
@@ -296,16 +306,25 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
     if diagnosis.context is None:
         raise ValueError(f"{diagnosis.source}: the diagnosis carries no fit context")
     final = diagnosis.final
-    _check_determined(diagnosis, final, "fit" if final.effects else "first-order fit")
+    loose = _loose_taus(final)
+    if first_order_taus is None:
+        _check_determined(diagnosis, final, "fit" if final.effects else "first-order fit")
     expected = set(diagnosis.expected_physics)
     base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
     params = dict(final.params)
     pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
     refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt)
+    if loose and not refusal:
+        refusal = f"the fit does not determine the time constants ({'; '.join(loose)})"
     if refusal:  # not trusted with the gas: every piece first order, on first order's tau
-        _check_determined(diagnosis, diagnosis.base, "first-order fit it falls back to")
+        if first_order_taus is None:
+            _check_determined(diagnosis, diagnosis.base, "first-order fit it falls back to")
         pieces = tuple(Piece(effect, "first order", refusal) for effect in final.effects)
-        params |= {"tau1": base_taus[0], "tau2": base_taus[1]}
+        fallback = base_taus if first_order_taus is None else first_order_taus
+        params |= {"tau1": fallback[0], "tau2": fallback[1]}
+    elif first_order_taus is not None and all(p.handling == "first order" for p in pieces):
+        # Nothing undone: the gas is the default path's, on its τ (fitted with the gain).
+        params |= {"tau1": first_order_taus[0], "tau2": first_order_taus[1]}
     return OutputModel(
         effects=tuple(final.effects),
         params=params,
@@ -322,13 +341,19 @@ def output_model_from_diagnosis(diagnosis: Diagnosis, origin_s: float = 0.0) -> 
     )
 
 
-def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
-    """Refuse to compensate on a fit whose τ the data do not determine (see the caller)."""
+def _loose_taus(fit: ModelFit) -> list[str]:
+    """τ of ``fit`` the data do not determine (on a bound, or a 95 % interval over a factor)."""
     loose = []
     for name in ("tau1", "tau2"):
         low, high = fit.intervals.get(name, (math.nan, math.nan))
         if name in fit.at_bound or high > MAX_TAU_INTERVAL_RATIO * low:
             loose.append(f"{name} = {fit.params[name]:.3g} s, 95 % interval {low:.3g}..{high:.3g}")
+    return loose
+
+
+def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
+    """Refuse to compensate on a fit whose τ the data do not determine (see the caller)."""
+    loose = _loose_taus(fit)
     if not loose:
         return
     found = diagnosis.final.params
@@ -414,4 +439,17 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
     from ..diagnose import diagnose, fit_effects
 
     diagnosis = diagnose(record) if effects is None else fit_effects(record, effects)
-    return output_model_from_diagnosis(diagnosis, origin_s=float(record.time[0]))
+    return output_model_from_diagnosis(
+        diagnosis, origin_s=float(record.time[0]), first_order_taus=default_taus(record)
+    )
+
+
+def default_taus(record: Record) -> tuple[float, float] | None:
+    """τ1, τ2 of the default first-order path on ``record`` (ml-eiv), s; None if it refuses."""
+    from ..estimators import estimate
+
+    try:
+        found = estimate(record.tc1, record.tc2, record.dt)
+    except (EstimationError, ValueError):
+        return None
+    return float(found.tau1), float(found.tau2)

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..choices import parse_effect_list
-from ..compensation import output_model_from_diagnosis
+from ..compensation import default_taus, output_model_from_diagnosis
 from ..io import Record
 from ..workers import JobRunner, ProcessRunner
 from .pipeline import diagnose, fit_effects
@@ -106,7 +106,11 @@ def run_job(
             if find_suspect:
                 suspects = diagnose(record, max_effects=1).suspects
                 suspect = next((item for item in suspects if item.significant), None)
-        model = output_model_from_diagnosis(fitted) if output else None
+        model = (
+            output_model_from_diagnosis(fitted, first_order_taus=default_taus(record))
+            if output
+            else None
+        )
     except Exception as exc:  # the caller must learn of any failure, not lose its worker
         return {"error": f"{type(exc).__name__}: {exc}"}
     result = {
