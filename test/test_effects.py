@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -172,3 +174,13 @@ def test_every_effect_list_goes_through_one_parser():
     for text in (" delay ", "delay,calibration", "none", ""):
         assert parse_compensate_effects(text) == parse_effects(text) == tuple(effect_list(text))
     assert parse_compensate_effects(" auto ") is None
+
+
+def test_the_fin_filter_of_a_very_long_fin_is_the_wire_alone():
+    """mL beyond cosh's range (a search passing a tiny τ): no overflow, the supports' share 0
+    (draw 62 of the campaign stopped on 'math range error')."""
+    from tcomp_core.effects.conduction import fin_filter, fin_sech
+
+    assert fin_sech(800.0) == 0.0 and fin_sech(1.0) == pytest.approx(1 / math.cosh(1.0))
+    zeros, poles = fin_filter(1e-6, 900.0, 1.0)
+    assert np.all(np.isfinite(zeros)) and np.all(np.isfinite(poles))

@@ -55,7 +55,7 @@ from numpy.typing import NDArray
 
 from .base import Effect, FitContext, ParamSpec
 
-__all__ = ["FIN_TERMS", "Conduction", "fin_filter", "fin_kappa", "fin_length"]
+__all__ = ["FIN_TERMS", "Conduction", "fin_filter", "fin_kappa", "fin_length", "fin_sech"]
 
 #: Factors of the Weierstrass product of sech kept as they are (the rest make one lag).
 FIN_TERMS = 6
@@ -72,6 +72,15 @@ def fin_kappa(fin_ml: float) -> float:
     if half > 350.0:  # sinh overflows; κ is 0 to double precision long before
         return 0.0
     return 1.0 / (2.0 * math.sinh(half) ** 2)
+
+
+def fin_sech(fin_ml: float) -> float:
+    """sech(mL), the supports' steady share of the junction; 0 where cosh overflows.
+
+    A search can pass a very short wire τ, and mL = √(τ_leg/τ) grows without bound there
+    (a campaign draw stopped on ``math range error``).
+    """
+    return 0.0 if fin_ml > 700.0 else 1.0 / math.cosh(fin_ml)
 
 
 def fin_length(kappa: float) -> float:
@@ -117,7 +126,7 @@ def fin_filter(
     numerator = np.array([1.0])
     for lag in lags:  # D(s) = Π(lag s + 1), highest power first
         numerator = np.convolve(numerator, [lag, 1.0])
-    numerator[-2] -= (tau_p - tau) / math.cosh(fin_ml)  # D − N
+    numerator[-2] -= (tau_p - tau) * fin_sech(fin_ml)  # D − N
     zeros = np.roots(numerator).astype(np.complex128)
     # With τp < τ/2 (supports faster than the wire: no physical rig, but a search can pass
     # there) M is not minimum phase; zeros reflected into the left half plane keep |M| and a
