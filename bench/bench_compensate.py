@@ -58,7 +58,6 @@ from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.effects.chain import fractional_shift
-from tcomp_core.estimators import estimate
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
 from tcomp_core.simulate_effects import simulate_effect
@@ -159,12 +158,14 @@ def compare(
             row[f"{key}_first_full"] = scores(record, first.gas, None, held)[0]
             row[f"{key}_final_full"] = scores(record, extended.gas, None, held)[0]
     if default_too:
-        # What a user gets with no option: ml-eiv (with the sensors' gain) and the smoother.
-        plain = estimate(record.tc1, record.tc2, record.dt)
-        gas = fuse(record.tc1, record.tc2, record.dt, plain.tau1, plain.tau2).gas
-        row["tau_default"] = [plain.tau1, plain.tau2]
-        row["smoother_default"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]
-        row["smoother_default_full"] = scores(record, gas, None, held)[0]
+        # What a user gets with no option: ml-eiv (with the sensors' gain) and the smoother;
+        # nan where that path refuses the record.
+        row["tau_default"] = list(plain_taus) if plain_taus else [math.nan, math.nan]
+        row["smoother_default"] = row["smoother_default_full"] = math.nan
+        if plain_taus is not None:
+            gas = fuse(record.tc1, record.tc2, record.dt, *plain_taus).gas
+            row["smoother_default"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]
+            row["smoother_default_full"] = scores(record, gas, None, held)[0]
     row["seconds"] = time.perf_counter() - started
     return row
 
@@ -387,7 +388,8 @@ def summarise_campaign(rows: list[dict]) -> None:
         (("smoother_default_full", "smoother_final_full"), "full band, default"),
     ):
         output = "ungated_output" if "ungated" in final else "output"
-        scored = [r for r in rows if first in r]  # draws run before a reference was added lack it
+        # Draws run before a reference was added lack it; nan: the default path refused.
+        scored = [r for r in rows if math.isfinite(r.get(first, math.nan))]
         worse = [r for r in scored if campaign_draws.materially_worse(r[first], r[final])]
         effect_rows = [r for r in scored if r["truth"] and r[first] >= 1.0]
         falls = [r[first] / r[final] if r[final] > 0 else math.inf for r in effect_rows]
