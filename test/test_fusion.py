@@ -412,3 +412,33 @@ def test_a_model_whose_smoother_is_not_finite_gives_way(monkeypatch):
     assert f"{tried[0]} numerically unstable on this record" in result.note
     assert f"{tried[1]} used instead" in result.note
     assert np.all(np.isfinite(result.gas))
+
+
+@pytest.mark.parametrize("widen", [True, False])
+def test_causal_std_widens_where_the_readings_disagree_with_the_model(widen, monkeypatch):
+    """A model fitted on a multisine meets 500 °C steps: the filter rings beyond the readings,
+    and its std must say so (it claimed the multisine's 0.7 °C at errors of hundreds)."""
+    from tcomp_core.fusion import causal
+
+    if not widen:  # the filter as it was: the model's std whatever the readings do
+        monkeypatch.setattr(causal, "CONSISTENCY_THRESHOLD", np.inf)
+    pair, model = causal_case()
+    dt, taus = pair.dt, (pair.tau1, pair.tau2)
+    time = np.arange(3000) * dt
+    steps = np.where(time % 1.0 < 0.5, 300.0, 800.0)
+    rng = np.random.default_rng(27)
+    readings = []
+    for tau, sigma in zip(taus, (model.sigma1, model.sigma2), strict=True):
+        pole, value, out = np.exp(-dt / tau), steps[0], np.empty_like(steps)
+        for k, gas in enumerate(steps):
+            out[k] = value
+            value = pole * value + (1 - pole) * gas
+        readings.append(out + rng.normal(0.0, sigma, steps.size))
+    matched = fuse(pair.tc1, pair.tc2, dt, *taus, model=model, causal=True)
+    stepped = fuse(*readings, dt, *taus, model=model, causal=True)
+    # On the record the model fits, the std is the model's almost everywhere.
+    assert np.mean(matched.std[600:] > 1.01 * np.median(matched.std[600:])) < 0.01
+    # On the steps it widens, and the errors stay within four of it nearly everywhere.
+    error = np.abs(stepped.gas[:-1] - steps[:-1])
+    within = np.mean(error <= 4 * stepped.std[:-1])
+    assert (within > 0.99) == widen, within

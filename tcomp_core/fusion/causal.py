@@ -2,7 +2,14 @@
 
 The filter starts from a diffuse prior with the exact time-varying Kalman recursion and switches
 to the steady-state gain once its gain has converged, or after :data:`MAX_EXACT_SAMPLES`
-samples. The covariances of the time-varying part do not depend on the data: their gains are
+samples. Its standard deviation is the model's, unless the readings disagree with the model:
+the innovations' normalised square (2 on average for a right model) is averaged over
+:data:`CONSISTENCY_MEMORY` samples, and where that average stands above
+:data:`CONSISTENCY_THRESHOLD` times its expectation the standard deviation is widened by its
+square root (covariance matching): a signal model fitted on a sine that meets a 500 °C step
+rang from −17 to 1 113 °C for readings of 274–801 °C while claiming 0.7 °C.
+
+The covariances of the time-varying part do not depend on the data: their gains are
 computed once per model (:class:`ExactSchedule`), so a start (or a restart after a gap) costs
 one small state update per sample. The steady-state part is a fixed linear recursion run in
 batches at compiled speed (:class:`~tcomp_core.fusion.recursion.ModalRecursion`).
@@ -15,13 +22,21 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import signal
 
 from ..validation import check_pair
 from .kalman import steady_state
 from .recursion import ModalRecursion
 from .signal_model import FusionModel, StateSpace
 
-__all__ = ["GAIN_TOLERANCE", "MAX_EXACT_SAMPLES", "CausalFuser", "ExactSchedule"]
+__all__ = [
+    "CONSISTENCY_MEMORY",
+    "CONSISTENCY_THRESHOLD",
+    "GAIN_TOLERANCE",
+    "MAX_EXACT_SAMPLES",
+    "CausalFuser",
+    "ExactSchedule",
+]
 
 #: Relative distance of the time-varying Kalman gain from the steady-state one at which the
 #: causal filter switches to the steady-state gain.
@@ -31,6 +46,11 @@ GAIN_TOLERANCE = 1e-4
 MAX_EXACT_SAMPLES = 4096
 
 LOG_2PI_SQUARED = 2.0 * math.log(2.0 * math.pi)
+#: Memory of the average of the innovations' normalised square, samples.
+CONSISTENCY_MEMORY = 64
+#: Ratio of that average to its expectation above which the readings disagree with the model
+#: (the average of a right model scatters by ±0.09 about 1: this is 5.6 of those).
+CONSISTENCY_THRESHOLD = 1.5
 
 
 @dataclass(frozen=True)
@@ -138,6 +158,7 @@ class CausalFuser:
         self._state: NDArray[np.float64] | None = None  # x_{k|k-1}
         self._step = 0  # time-varying steps taken since the start
         self.log_likelihood = 0.0
+        self._disagreement = 1.0  # average normalised innovation square / 2
 
     def _set_model(self, model: FusionModel) -> None:
         self.model = model
@@ -181,6 +202,7 @@ class CausalFuser:
         self._state = None
         self._step = 0
         self.log_likelihood = 0.0
+        self._disagreement = 1.0
 
     def retune(self, model: FusionModel) -> None:
         """Switch to new model settings (e.g. new τ) and keep what the filter knows.
@@ -228,17 +250,30 @@ class CausalFuser:
         if not count:
             return np.empty(0), np.empty(0)
         y = np.vstack((first, second))
-        gas, std = np.empty(count), np.empty(count)
+        gas, std, square = np.empty(count), np.empty(count), np.empty(count)
         state, skip = self._state, 0
         if state is None:
             state, skip = self._initial_state(first[0], second[0]), 1
         done = 0
         if self._step < self.schedule.length:
-            state, done = self._exact_batch(y, state, gas, std)
+            state, done = self._exact_batch(y, state, gas, std, square)
         if done < count:
-            state = self._steady_batch(y[:, done:], state, gas[done:], std[done:])
+            state = self._steady_batch(y[:, done:], state, gas[done:], std[done:], square[done:])
         self._state = state
-        return gas[skip:], std[skip:]
+        return gas[skip:], std[skip:] * self._widening(square[skip:])
+
+    def _widening(self, square: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Factor on the std of each sample: √ of the innovations' excess where it is real.
+
+        ``square`` holds the innovations' normalised squares of the samples, shape (M,).
+        """
+        rate = 1.0 / CONSISTENCY_MEMORY
+        average, _ = signal.lfilter(
+            [rate], [1.0, rate - 1.0], 0.5 * square, zi=[(1.0 - rate) * self._disagreement]
+        )
+        if average.size:
+            self._disagreement = float(average[-1])
+        return np.where(average > CONSISTENCY_THRESHOLD, np.sqrt(average), 1.0)
 
     def _exact_batch(
         self,
@@ -246,11 +281,12 @@ class CausalFuser:
         state: NDArray[np.float64],
         gas: NDArray[np.float64],
         std: NDArray[np.float64],
+        square: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], int]:
         """Time-varying filter over y (2, M) from the predicted ``state`` (n,).
 
-        Writes gas and std of the samples it takes (until the schedule ends); returns the next
-        predicted state and the number of samples taken.
+        Writes gas, std and the innovations' normalised square of the samples it takes (until
+        the schedule ends); returns the next predicted state and the number of samples taken.
         """
         schedule = self.schedule
         count = min(y.shape[1], schedule.length - self._step)
@@ -268,10 +304,14 @@ class CausalFuser:
         gas[:count] = predicted @ self._space.output + np.einsum(
             "ki,ki->k", schedule.read[steps], innovations
         )
-        quadratic = np.einsum("ki,kij,kj->", innovations, schedule.inverse[steps], innovations)
+        square[:count] = np.einsum(
+            "ki,kij,kj->k", innovations, schedule.inverse[steps], innovations
+        )
         std[:count] = schedule.std[steps]
         self.log_likelihood -= 0.5 * (
-            float(np.sum(schedule.log_det[steps])) + float(quadratic) + count * LOG_2PI_SQUARED
+            float(np.sum(schedule.log_det[steps]))
+            + float(square[:count].sum())
+            + count * LOG_2PI_SQUARED
         )
         self._step += count
         return state, count
@@ -282,18 +322,20 @@ class CausalFuser:
         state: NDArray[np.float64],
         gas: NDArray[np.float64],
         std: NDArray[np.float64],
+        square: NDArray[np.float64],
     ) -> NDArray[np.float64]:
         """Steady-state filter over y (2, M) from the predicted ``state`` (n,).
 
-        Writes the filtered gas and its std (M,); returns the next predicted state.
+        Writes the filtered gas, its std and the innovations' normalised square (M,); returns
+        the next predicted state.
         """
         outputs, state = self._recursion.run(y, state)
         gas[:] = outputs[0]
         std[:] = self._steady_std
         innovations = y - outputs[1:]
-        quadratic = np.einsum("ik,ij,jk->", innovations, self._inverse_innovation, innovations)
+        square[:] = np.einsum("ik,ij,jk->k", innovations, self._inverse_innovation, innovations)
         self.log_likelihood -= 0.5 * (
-            y.shape[1] * (self._log_det + LOG_2PI_SQUARED) + float(quadratic)
+            y.shape[1] * (self._log_det + LOG_2PI_SQUARED) + float(square.sum())
         )
         return state
 
