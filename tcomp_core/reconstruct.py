@@ -80,8 +80,7 @@ def noise_gain(a1: float, a2: float, weight1: float) -> float:
     Each reconstruction's noise has variance (1 + a_i²)/(1 - a_i)² σ²; the combination weighs
     them by ``weight1`` and 1 - ``weight1``.
     """
-    variance1, variance2 = _noise_variance(a1), _noise_variance(a2)
-    return float(np.sqrt(weight1**2 * variance1 + (1.0 - weight1) ** 2 * variance2))
+    return float(np.sqrt(gas_noise_variance(a1, a2, weight1, 1.0, 1.0)))
 
 
 def gas_noise_variance(
