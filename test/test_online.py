@@ -410,3 +410,41 @@ def test_window_is_bounded_in_samples_whatever_the_period():
     engine.add_samples(1, stamps, 20 + rng.standard_normal(5000), 0.0)
     engine.reconstruct()
     assert engine.compensator.window_samples <= 1000
+
+
+def test_health_warns_while_the_readings_disagree_with_the_signal_model():
+    """A Kalman filter fitted on tones that meet 500 °C steps: its std widens (counted in
+    ``widened``) and the status says so, at least WARN, while the steps last."""
+    from scipy import signal
+
+    dt, taus = 0.002, (0.02, 0.1)
+    time = np.arange(round(8.0 / dt)) * dt
+    tones = 300 + 50 * np.sin(2 * np.pi * 3 * time) + 20 * np.sin(2 * np.pi * 11 * time)
+    gas = np.where(time < 6.0, tones, np.where(time % 1.0 < 0.5, 300.0, 800.0))
+    rng = np.random.default_rng(41)
+    readings = []
+    for tau in taus:
+        pole = np.exp(-dt / tau)
+        lagged = signal.lfilter([1 - pole], [1, -pole], gas, zi=[pole * gas[0]])[0]
+        readings.append(lagged + rng.normal(0.0, 0.3, gas.size))
+    engine = Engine(OnlineConfig(reconstruction="kalman", window_s=3.0, update_period_s=0.5))
+    stamps = np.round(time * 1e9).astype(np.int64) + 10**18
+    levels, widened = {}, {}
+    for start in range(0, stamps.size, 50):
+        part = slice(start, start + 50)
+        now = stamps[part][-1] * 1e-9
+        engine.add_samples(0, stamps[part], readings[0][part], now)
+        engine.add_samples(1, stamps[part], readings[1][part], now)
+        engine.reconstruct()
+        if (start + 50) % 250 == 0:  # every half second
+            engine.update_estimate(now)
+            health = engine.report(now)
+            second = round(time[part][-1] - 1e-9, 1)
+            levels[second], widened[second] = health, int(health.values["widened"])
+    tones_end = levels[5.5]
+    assert tones_end.level == Level.OK and widened[5.5] < 0.01 * 5.5 / dt
+    for second in (6.5, 7.0, 7.5):  # steps: the gas rings far beyond the model's std
+        health = levels[second]
+        assert health.level >= Level.WARN, health.message
+        assert "disagree with the signal model" in health.message
+    assert widened[7.5] - widened[5.5] > 0.2 * 2.0 / dt

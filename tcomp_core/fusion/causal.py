@@ -2,12 +2,8 @@
 
 The filter starts from a diffuse prior with the exact time-varying Kalman recursion and switches
 to the steady-state gain once its gain has converged, or after :data:`MAX_EXACT_SAMPLES`
-samples. Its standard deviation is the model's, unless the readings disagree with the model:
-the innovations' normalised square (2 on average for a right model) is averaged over
-:data:`CONSISTENCY_MEMORY` samples, and where that average stands above
-:data:`CONSISTENCY_THRESHOLD` times its expectation the standard deviation is widened by its
-square root (covariance matching): a signal model fitted on a sine that meets a 500 °C step
-rang from −17 to 1 113 °C for readings of 274–801 °C while claiming 0.7 °C.
+samples. Its standard deviation is the model's, widened where the readings disagree with the
+model (:mod:`.consistency`).
 
 The covariances of the time-varying part do not depend on the data: their gains are
 computed once per model (:class:`ExactSchedule`), so a start (or a restart after a gap) costs
@@ -22,16 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from ..validation import check_pair
-from .kalman import steady_state
+from .consistency import ConsistencyCheck
+from .kalman import SteadyState, steady_state
 from .recursion import ModalRecursion
 from .signal_model import FusionModel, StateSpace
 
 __all__ = [
-    "CONSISTENCY_MEMORY",
-    "CONSISTENCY_THRESHOLD",
     "GAIN_TOLERANCE",
     "MAX_EXACT_SAMPLES",
     "CausalFuser",
@@ -46,11 +40,6 @@ GAIN_TOLERANCE = 1e-4
 MAX_EXACT_SAMPLES = 4096
 
 LOG_2PI_SQUARED = 2.0 * math.log(2.0 * math.pi)
-#: Memory of the average of the innovations' normalised square, samples.
-CONSISTENCY_MEMORY = 64
-#: Ratio of that average to its expectation above which the readings disagree with the model
-#: (the average of a right model scatters by ±0.09 about 1: this is 5.6 of those).
-CONSISTENCY_THRESHOLD = 1.5
 
 
 @dataclass(frozen=True)
@@ -154,13 +143,15 @@ class CausalFuser:
     """
 
     def __init__(self, model: FusionModel) -> None:
-        self._set_model(model)
+        gains = self._set_model(model)
+        #: Where the readings disagree with the model, and how far that widens the std.
+        self.consistency = ConsistencyCheck(model, gains.closed_loop)
         self._state: NDArray[np.float64] | None = None  # x_{k|k-1}
         self._step = 0  # time-varying steps taken since the start
         self.log_likelihood = 0.0
-        self._disagreement = 1.0  # average normalised innovation square / 2
+        self._last: NDArray[np.float64] | None = None  # the last readings (tc1, tc2)
 
-    def _set_model(self, model: FusionModel) -> None:
+    def _set_model(self, model: FusionModel) -> SteadyState:
         self.model = model
         self._space = space = model.state_space()
         self._gains = gains = steady_state(space)
@@ -179,6 +170,7 @@ class CausalFuser:
         innovation = gains.innovation
         self._inverse_innovation = np.linalg.inv(innovation)
         self._log_det = float(np.linalg.slogdet(innovation)[1])
+        return gains
 
     @property
     def schedule(self) -> ExactSchedule:
@@ -202,7 +194,8 @@ class CausalFuser:
         self._state = None
         self._step = 0
         self.log_likelihood = 0.0
-        self._disagreement = 1.0
+        self._last = None
+        self.consistency.reset()
 
     def retune(self, model: FusionModel) -> None:
         """Switch to new model settings (e.g. new τ) and keep what the filter knows.
@@ -210,14 +203,16 @@ class CausalFuser:
         The state ``[x, T_1, T_2]`` means the same under any model with the same signal state,
         so the estimate carries over without a new diffuse start, and a filter still converging
         continues the new model's time-varying start where it stood. A model whose signal state
-        differs (another kind or order) starts afresh (:meth:`reset`).
+        differs (another kind or order) starts afresh (:meth:`reset`). The consistency check keeps
+        what it has seen (:meth:`~.consistency.ConsistencyCheck.retune`).
         """
         same_state = (model.kind, model.order, len(model.ar)) == (
             self.model.kind,
             self.model.order,
             len(self.model.ar),
         )
-        self._set_model(model)
+        gains = self._set_model(model)
+        self.consistency.retune(model, gains.closed_loop)
         if not same_state:
             self.reset()
 
@@ -250,30 +245,29 @@ class CausalFuser:
         if not count:
             return np.empty(0), np.empty(0)
         y = np.vstack((first, second))
-        gas, std, square = np.empty(count), np.empty(count), np.empty(count)
+        gas, std = np.empty(count), np.empty(count)
+        innovations, inverse = np.empty((2, count)), np.empty((count, 2, 2))
         state, skip = self._state, 0
         if state is None:
             state, skip = self._initial_state(first[0], second[0]), 1
         done = 0
         if self._step < self.schedule.length:
-            state, done = self._exact_batch(y, state, gas, std, square)
+            state, done = self._exact_batch(y, state, gas, std, innovations, inverse)
         if done < count:
-            state = self._steady_batch(y[:, done:], state, gas[done:], std[done:], square[done:])
+            state = self._steady_batch(
+                y[:, done:], state, gas[done:], std[done:], innovations[:, done:]
+            )
+            inverse[done:] = self._inverse_innovation
         self._state = state
-        return gas[skip:], std[skip:] * self._widening(square[skip:])
-
-    def _widening(self, square: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Factor on the std of each sample: √ of the innovations' excess where it is real.
-
-        ``square`` holds the innovations' normalised squares of the samples, shape (M,).
-        """
-        rate = 1.0 / CONSISTENCY_MEMORY
-        average, _ = signal.lfilter(
-            [rate], [1.0, rate - 1.0], 0.5 * square, zi=[(1.0 - rate) * self._disagreement]
+        if self._last is not None:
+            y = np.hstack((self._last[:, None], y))
+        self._last = y[:, -1].copy()
+        inversion = self.consistency.inversion(y[0], y[1])
+        gas, std = gas[skip:], std[skip:]
+        widened = self.consistency.widen(
+            std, innovations[:, skip:], inverse[skip:], gas, inversion
         )
-        if average.size:
-            self._disagreement = float(average[-1])
-        return np.where(average > CONSISTENCY_THRESHOLD, np.sqrt(average), 1.0)
+        return gas, widened
 
     def _exact_batch(
         self,
@@ -281,37 +275,37 @@ class CausalFuser:
         state: NDArray[np.float64],
         gas: NDArray[np.float64],
         std: NDArray[np.float64],
-        square: NDArray[np.float64],
+        innovations: NDArray[np.float64],
+        inverse: NDArray[np.float64],
     ) -> tuple[NDArray[np.float64], int]:
         """Time-varying filter over y (2, M) from the predicted ``state`` (n,).
 
-        Writes gas, std and the innovations' normalised square of the samples it takes (until
-        the schedule ends); returns the next predicted state and the number of samples taken.
+        Writes gas, std, the innovations (2, M) and their inverse covariances (M, 2, 2) of the
+        samples it takes (until the schedule ends); returns the next predicted state and the
+        number of samples taken.
         """
         schedule = self.schedule
         count = min(y.shape[1], schedule.length - self._step)
         f = self._space.transition
         steps = slice(self._step, self._step + count)
         drive = schedule.drive[steps]  # F K_k, (count, n, 2)
-        innovations = np.empty((count, 2))
+        taken = np.empty((count, 2))
         predicted = np.empty((count, state.size))
         # Only the state recursion is sequential: x_{k+1|k} = F x_{k|k-1} + F K_k e_k.
         for k in range(count):
             predicted[k] = state
-            innovations[k] = innovation = y[:, k] - state[-2:]
+            taken[k] = innovation = y[:, k] - state[-2:]
             state = f @ state + drive[k] @ innovation
         # The outputs of all the samples at once: c x_{k|k} = c x_{k|k-1} + (c K_k) e_k.
         gas[:count] = predicted @ self._space.output + np.einsum(
-            "ki,ki->k", schedule.read[steps], innovations
+            "ki,ki->k", schedule.read[steps], taken
         )
-        square[:count] = np.einsum(
-            "ki,kij,kj->k", innovations, schedule.inverse[steps], innovations
-        )
+        innovations[:, :count] = taken.T
+        inverse[:count] = schedule.inverse[steps]
+        square = np.einsum("ki,kij,kj->k", taken, schedule.inverse[steps], taken)
         std[:count] = schedule.std[steps]
         self.log_likelihood -= 0.5 * (
-            float(np.sum(schedule.log_det[steps]))
-            + float(square[:count].sum())
-            + count * LOG_2PI_SQUARED
+            float(np.sum(schedule.log_det[steps])) + float(square.sum()) + count * LOG_2PI_SQUARED
         )
         self._step += count
         return state, count
@@ -322,18 +316,18 @@ class CausalFuser:
         state: NDArray[np.float64],
         gas: NDArray[np.float64],
         std: NDArray[np.float64],
-        square: NDArray[np.float64],
+        innovations: NDArray[np.float64],
     ) -> NDArray[np.float64]:
         """Steady-state filter over y (2, M) from the predicted ``state`` (n,).
 
-        Writes the filtered gas, its std and the innovations' normalised square (M,); returns
-        the next predicted state.
+        Writes the filtered gas, its std and the innovations (2, M); returns the next
+        predicted state.
         """
         outputs, state = self._recursion.run(y, state)
         gas[:] = outputs[0]
         std[:] = self._steady_std
-        innovations = y - outputs[1:]
-        square[:] = np.einsum("ik,ij,jk->k", innovations, self._inverse_innovation, innovations)
+        innovations[:] = y - outputs[1:]
+        square = np.einsum("ik,ij,jk->k", innovations, self._inverse_innovation, innovations)
         self.log_likelihood -= 0.5 * (
             y.shape[1] * (self._log_det + LOG_2PI_SQUARED) + float(square.sum())
         )
@@ -353,4 +347,5 @@ class CausalFuser:
             variance = float(self.schedule.predicted_var[self._step])
         else:
             variance = float(c @ self._gains.predicted @ c)
-        return float(c @ self._state), math.sqrt(max(variance, 0.0))
+        std = self.consistency.widen_prediction(math.sqrt(max(variance, 0.0)))
+        return float(c @ self._state), std

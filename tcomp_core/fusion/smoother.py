@@ -2,7 +2,8 @@
 
 The backward pass is a linear recursion like the forward one; the reported variance is the
 smoothed covariance plus the part due to the generalised least-squares estimate of the initial
-state (:func:`~tcomp_core.fusion.kalman.forward_pass`).
+state (:func:`~tcomp_core.fusion.kalman.forward_pass`), widened where the readings disagree with
+the model (:func:`~tcomp_core.fusion.consistency.widen_smoothed`).
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .consistency import widen_smoothed
 from .kalman import ForwardPass, SteadyState, forward_pass, steady_state
 from .recursion import apply_matrix, decay_horizon, linear_recursion, matrix_powers
 from .signal_model import FusionModel, StateSpace
@@ -22,9 +24,11 @@ COVARIANCE_TOLERANCE = 1e-10
 
 def _smooth(
     model: StateSpace, gains: SteadyState, forward: ForwardPass
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Steady-state RTS smoother: smoothed states (n, N) and their output variances (N,).
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Steady-state RTS smoother: smoothed states, their output variances and innovations.
 
+    Returns the smoothed states (n, N), their output variances (N,) and the forward filter's
+    innovations from the estimated initial state (2, N).
     ``x_{k|N} = J x_{k+1|N} + (I - J F) x_{k|k}`` with ``J = P_f Fᵀ P_p⁻¹``, run backwards.
     The variance is the smoothed covariance (``P_f`` at the end of the record, converging
     backwards to its steady state) plus the part due to the GLS estimate of x_0.
@@ -51,7 +55,7 @@ def _smooth(
             sensitivity = np.concatenate((sensitivity, np.zeros_like(sensitivity[:, :1])), 1)
         output = np.einsum("i,ikj->kj", c, _backward(smoother, blend, sensitivity))[:length]
         variances[:length] += np.einsum("ki,ij,kj->k", output, forward.initial_covariance, output)
-    return states, variances
+    return states, variances, innovations
 
 
 def _backward(
@@ -89,11 +93,15 @@ def smoothed_gas(
     gains = steady_state(space)
     level = float(np.mean(first))
     forward = forward_pass(space, gains, np.vstack((first - level, second - level)), None)
-    states, variances = _smooth(space, gains, forward)
+    states, variances, innovations = _smooth(space, gains, forward)
     c, f = space.output, space.transition
     # State k holds the gas of interval k-1; the last interval is predicted one step ahead.
     ahead = f @ states[:, -1]
     ahead_variance = c @ gains.predicted @ c + variances[-1] - c @ gains.filtered @ c
     gas = np.append(c @ states[:, 1:], c @ ahead) + level
     std = np.sqrt(np.append(variances[1:], ahead_variance))
+    # Innovation k is of the readings at t_k, which close interval k-1; none closes the last.
+    closing = np.hstack((innovations[:, 1:], np.zeros((2, 1))))
+    inverse = np.asarray(np.linalg.inv(gains.innovation), dtype=np.float64)
+    std = widen_smoothed(model, gains.closed_loop, std, closing, inverse, gas, first, second)
     return gas, std, forward.log_likelihood

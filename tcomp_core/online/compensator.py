@@ -158,6 +158,9 @@ class OnlineCompensator:
         #: A change of the inputs' rate not yet followed by an accepted estimate ('' when none).
         self.rate_note = ""
         self.rate_changes = 0
+        #: Gas values published with a widened std: the readings disagreed with the signal
+        #: model (:mod:`tcomp_core.fusion.consistency`).
+        self.widened = 0
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -720,8 +723,9 @@ class OnlineCompensator:
         if steps_s.size == 0:
             return GasBatch.empty()
         if self._extended is not None:
-            lost = self._extended.lost
+            lost, widened = self._extended.lost, self._extended.widened
             out = self._extended.reconstruct(stamps, tc1, tc2, contiguous)
+            self.widened += self._extended.widened - widened
             self._reconstructed_until = int(stamps[-1])
             self.counters["reconstructed"] += int(out.stamps_ns.size)
             self.counters["unreconstructed"] += int((~contiguous).sum()) + (
@@ -736,6 +740,7 @@ class OnlineCompensator:
         self.counters["reconstructed"] += int(out_stamps.size)
         self.counters["unreconstructed"] += int((~contiguous).sum())
         gas, variance = self._reconstructor.reconstruct(stamps, tc1, tc2, steps_s, contiguous)
+        self.widened += self._reconstructor.last_widened
         self._reconstructed_until = int(stamps[-1])
         return self._published(GasBatch(out_stamps, self._filter(gas), variance))
 

@@ -135,6 +135,8 @@ class ExtendedOutput:
         self._last_taken = np.iinfo(np.int64).min
         self._published_until = int(published_until_ns)
         self.lost = 0
+        #: Values whose std was widened because the readings disagree with the signal model.
+        self.widened = 0
         self.since_ns: int | None = None
 
     @property
@@ -233,6 +235,7 @@ class ExtendedOutput:
         gas, variance = self._reconstructor.reconstruct(
             out_stamps, first, second, steps_s, contiguous
         )
+        self.widened += self._reconstructor.last_widened
         gas_stamps = out_stamps[:-1]
         fresh = gas_stamps > self._published_until
         if fresh.any():

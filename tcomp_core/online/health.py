@@ -297,6 +297,8 @@ class HealthMonitor:
         self._invalid_at_report = [0, 0]
         self._malformed_at_report = [0, 0]
         self._discontinuities_at_report = 0
+        self._widened_at_report = 0
+        self._published_at_report = 0
 
     def heard(self, index: int, now: float) -> None:
         """Input ``index`` delivered samples at ``now`` (seconds)."""
@@ -371,6 +373,7 @@ class HealthMonitor:
             "malformed_tc2": str(counters.malformed[1]),
             "discontinuities": str(counters.discontinuities),
             "published": str(published),
+            "widened": str(engine.widened),
             "estimate_age_s": format_value(age),
             **extra,
         }
@@ -397,6 +400,13 @@ class HealthMonitor:
             # rely on it.
             message += f"; the published gas uses {model.name(causal_stream=True)}"
         notes = self._input_notes(counters, malformed_reasons)
+        widened = engine.widened - self._widened_at_report
+        if widened:
+            notes.append(
+                f"the readings disagree with the signal model: {widened} of the "
+                f"{max(published - self._published_at_report, widened)} gas values since the "
+                "last report carry a widened std"
+            )
         if engine.rate_note:  # until an estimate at the new rate is accepted
             notes.append(engine.rate_note)
         if notes:
@@ -410,6 +420,8 @@ class HealthMonitor:
         self._invalid_at_report = list(counters.invalid)
         self._malformed_at_report = list(counters.malformed)
         self._discontinuities_at_report = counters.discontinuities
+        self._widened_at_report = engine.widened
+        self._published_at_report = published
         return Health(level, message, values)
 
     def _input_notes(self, counters: PairCounters, reasons: Sequence[str]) -> list[str]:

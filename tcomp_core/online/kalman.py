@@ -211,6 +211,9 @@ class KalmanReconstructor:
         self.quick = False
         #: What the last build could not do and what it used instead ('' when nothing).
         self.note = ""
+        #: Values of the last :meth:`reconstruct` whose std was widened because the readings
+        #: disagree with the signal model (:mod:`tcomp_core.fusion.consistency`).
+        self.last_widened = 0
 
     def configure(self, config: OnlineConfig) -> None:
         """Take settings that keep the filter (``reconstruct_from``, ``phi``, ...)."""
@@ -290,6 +293,7 @@ class KalmanReconstructor:
         starts afresh after a gap or a lost one.
         """
         fuser = self._fuser
+        self.last_widened = 0
         if fuser is None:
             return self._fallback.reconstruct(stamps, tc1, tc2, steps_s, contiguous)
         gas, std = [], []
@@ -300,6 +304,7 @@ class KalmanReconstructor:
             else:
                 fuser.reset()
             estimates, deviations = fuser.extend(tc1[begin:stop], tc2[begin:stop])
+            self.last_widened += fuser.consistency.last_widened
             gas.append(estimates)
             std.append(deviations)
         self._fuser_stamp = int(stamps[-1])

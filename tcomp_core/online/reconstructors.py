@@ -84,6 +84,8 @@ class DifferenceReconstructor:
         self._period = period_s
         self._tau = tau
         self._weight = self._combination_weight()
+        #: Values of the last reconstruction whose std was widened (Eq. 7 has none).
+        self.last_widened = 0
 
     def _combination_weight(self) -> float:
         tau1, tau2 = self._tau
