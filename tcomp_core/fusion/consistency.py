@@ -44,6 +44,7 @@ __all__ = [
     "CONSISTENCY_THRESHOLD",
     "GAS_MEMORY",
     "GAS_THRESHOLD",
+    "MATERIAL_WIDENING",
     "MAX_HOLD_SAMPLES",
     "OFFSET_MEMORY",
     "ConsistencyCheck",
@@ -63,6 +64,10 @@ GAS_MEMORY = 8
 #: Ratio of that average to its expectation above which the filter's gas is off (on a record
 #: the model fits, its 99th percentile is 2.5).
 GAS_THRESHOLD = 4.0
+#: Factor on the model's std from which a widening counts (:attr:`ConsistencyCheck.last_widened`):
+#: the model's std is then less than half the error it is to bound, while the small, decaying
+#: widenings after a ramp's corner leave it within 40 %.
+MATERIAL_WIDENING = 2.0
 #: Longest time constant, samples, over which a widening decays after the readings agree again
 #: (a narrow resonator's closed loop may keep a state error for hours; its std then says so
 #: for this long, not for ever).
@@ -116,7 +121,8 @@ class ConsistencyCheck:
         self._innovation_held = 1.0
         self._gas_ratio = 1.0
         self._gas_held = 0.0  # °C², the held excess variance of the gas
-        #: Samples of the last :meth:`widen` whose std was widened.
+        #: Samples of the last :meth:`widen` whose std was widened materially (by
+        #: :data:`MATERIAL_WIDENING` or more).
         self.last_widened = 0
 
     def inversion(self, tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -207,7 +213,7 @@ class ConsistencyCheck:
         held_excess = self._hold(excess, self._gas_held, -1.0 / GAS_MEMORY)
         self._gas_held = float(held_excess[-1])
         published = np.maximum(widened, np.sqrt(variance + held_excess))
-        self.last_widened = int(np.count_nonzero(published > std))
+        self.last_widened = int(np.count_nonzero(published >= MATERIAL_WIDENING * std))
         return published
 
     def widen_prediction(self, std: float) -> float:

@@ -158,8 +158,8 @@ class OnlineCompensator:
         #: A change of the inputs' rate not yet followed by an accepted estimate ('' when none).
         self.rate_note = ""
         self.rate_changes = 0
-        #: Gas values published with a widened std: the readings disagreed with the signal
-        #: model (:mod:`tcomp_core.fusion.consistency`).
+        #: Gas values published with a std widened 2x or more: the readings disagreed with the
+        #: filter's model (:mod:`tcomp_core.fusion.consistency`).
         self.widened = 0
 
     # -- state ---------------------------------------------------------------------------------

@@ -135,7 +135,7 @@ class ExtendedOutput:
         self._last_taken = np.iinfo(np.int64).min
         self._published_until = int(published_until_ns)
         self.lost = 0
-        #: Values whose std was widened because the readings disagree with the signal model.
+        #: Values whose std was widened 2x or more: the readings disagree with the model.
         self.widened = 0
         self.since_ns: int | None = None
 

@@ -403,9 +403,9 @@ class HealthMonitor:
         widened = engine.widened - self._widened_at_report
         if widened:
             notes.append(
-                f"the readings disagree with the signal model: {widened} of the "
+                f"the readings disagree with the filter's model: {widened} of the "
                 f"{max(published - self._published_at_report, widened)} gas values since the "
-                "last report carry a widened std"
+                "last report carry a std widened 2x or more"
             )
         if engine.rate_note:  # until an estimate at the new rate is accepted
             notes.append(engine.rate_note)

@@ -211,8 +211,8 @@ class KalmanReconstructor:
         self.quick = False
         #: What the last build could not do and what it used instead ('' when nothing).
         self.note = ""
-        #: Values of the last :meth:`reconstruct` whose std was widened because the readings
-        #: disagree with the signal model (:mod:`tcomp_core.fusion.consistency`).
+        #: Values of the last :meth:`reconstruct` whose std was widened 2x or more because the
+        #: readings disagree with the filter's model (:mod:`tcomp_core.fusion.consistency`).
         self.last_widened = 0
 
     def configure(self, config: OnlineConfig) -> None:
