@@ -82,3 +82,27 @@ def test_a_steady_rate_with_jitter_and_gaps_is_not_a_change():
     _feed(engine, jittered[keep], tc1[keep], tc2[keep], batch=50)
     assert engine.rate_changes == 0 and engine.rate_note == ""
     assert engine.tau == pytest.approx(TAUS, rel=0.05)
+
+
+def test_a_change_inside_one_batch_is_counted_once_and_learns_the_new_period():
+    """``tcomp process`` hands the engine a second of pairs at a time: a batch of 400 pairs
+    at 500 Hz then 100 at 2 kHz used to learn the new period from all of them (2 ms, the
+    median), and the change was noticed again a batch later ("changed 2 time(s)")."""
+    engine = OnlineCompensator(OnlineConfig(window_s=2.0))
+    slow = _segment(500, 4.8, 10**18, seed=3)
+    fast = _segment(2000, 4.0, int(slow[0][-1]) + 500_000, seed=4)
+    stamps, tc1, tc2 = (np.concatenate(parts) for parts in zip(slow, fast, strict=True))
+    out, notes = [], []
+    for start in range(0, stamps.size, 500):  # the change falls 400 pairs into a batch
+        part = slice(start, start + 500)
+        out.append(engine.add_pairs(stamps[part], tc1[part], tc2[part]).stamps_ns)
+        notes.append(engine.rate_note)
+        engine.update_estimate()
+    assert engine.rate_changes == 1
+    assert engine.period_s == pytest.approx(5e-4)
+    # Named at the last pair of the old rate, not at the batch's first.
+    assert "at stamp 1000000004.798000 s" in next(filter(None, notes))
+    # The old rate's pairs of that batch were reconstructed before the restart.
+    published = np.concatenate(out)
+    change = int(fast[0][0])
+    assert np.count_nonzero((published > change - 10**9) & (published < change)) > 400

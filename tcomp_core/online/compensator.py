@@ -560,7 +560,15 @@ class OnlineCompensator:
         self._newest_stamp = int(stamps[-1])
         self._restarted = False
         self._steps.extend((steps[1:] if fresh else steps)[-RATE_CHANGE_STEPS:].tolist())
-        self._notice_rate(stamps)
+        head = GasBatch.empty()
+        start = self._notice_rate(stamps, steps)
+        if start:  # the batch's pairs before the change are the old rate's
+            assert self._period is not None  # a change is noticed against a learnt period
+            head = self._take(stamps[:start], first[:start], second[:start], self._period)
+            self._restart_for_rate()
+            stamps, first, second = stamps[start:], first[start:], second[start:]
+        elif start == 0:
+            self._restart_for_rate()
         if self._period is None:
             self._learning.append((stamps, first, second))
             if sum(batch[0].size for batch in self._learning) < PERIOD_LEARNING_SAMPLES:
@@ -571,29 +579,44 @@ class OnlineCompensator:
             )
             self._learning = []
             self._period = float(np.median(np.diff(stamps))) * 1e-9
-        return self._take(stamps, first, second, self._period)
+        if not stamps.size:
+            return head
+        return GasBatch.concatenate([head, self._take(stamps, first, second, self._period)])
 
-    def _notice_rate(self, stamps: NDArray[np.int64]) -> None:
-        """Relearn the period when the newest steps left it for another common rate."""
+    def _notice_rate(self, stamps: NDArray[np.int64], steps: NDArray[np.int64]) -> int | None:
+        """Where in this batch the inputs left the learnt period for another common rate.
+
+        ``steps`` (M,) are the batch's stamp steps (the first from the newest pair before it),
+        ns. Returns the index of the batch's first pair at the new rate (0 when the change
+        began in an earlier batch), or None when the period holds (or is configured: then
+        :attr:`rate_note` says the stamps disagree).
+        """
         if self._period is None or len(self._steps) < RATE_CHANGE_STEPS:
-            return
-        steps = np.fromiter(self._steps, dtype=np.float64, count=len(self._steps))
+            return None
+        newest = np.fromiter(self._steps, dtype=np.float64, count=len(self._steps))
         period_ns = self._period * 1e9
-        new_ns = float(np.median(steps))
-        off = np.abs(steps - period_ns) > RATE_TOLERANCE * period_ns
-        common = np.abs(steps - new_ns) <= RATE_TOLERANCE * new_ns
+        new_ns = float(np.median(newest))
+        off = np.abs(newest - period_ns) > RATE_TOLERANCE * period_ns
+        common = np.abs(newest - new_ns) <= RATE_TOLERANCE * new_ns
         if not (off.all() and common.mean() >= 0.9):
-            return
-        where = f"at stamp {int(stamps[0]) * 1e-9:.6f} s"
+            return None
+        # The pair the last old-period step reached is the first of the new rate.
+        old = np.flatnonzero(np.abs(steps - period_ns) <= RATE_TOLERANCE * period_ns)
+        start = int(old[-1]) if old.size else 0
+        where = f"at stamp {int(stamps[start]) * 1e-9:.6f} s"
         change = f"sample period {self._period:.6g} s -> about {new_ns * 1e-9:.6g} s {where}"
         self._steps.clear()
         if self._config.sample_period_s:
             self.rate_note = f"stamps disagree with sample_period_s: {change}"
-            return
+            return None
         self.rate_changes += 1
         self.rate_note = (
             f"inputs changed rate ({change}): window, period, τ and reconstruction restarted"
         )
+        return start
+
+    def _restart_for_rate(self) -> None:
+        """Start afresh at a new rate: window, period, τ, reconstruction, output model."""
         had_model = self.output_model is not None
         self.restart()
         self._period = None
