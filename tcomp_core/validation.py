@@ -179,5 +179,22 @@ def sample_interval_from_time(
             f"{name} is not uniformly sampled: the step before sample {worst + 1} is "
             f"{steps[worst]:.9g} s against a median step of {median:.9g} s "
             f"({100.0 * deviation[worst]:.3g} % off, tolerance {100.0 * tolerance:.3g} %)"
+            + _rate_change_hint(steps, tolerance)
         )
     return float((t[-1] - t[0]) / (t.size - 1))
+
+
+def _rate_change_hint(steps: NDArray[np.float64], tolerance: float) -> str:
+    """Words for steps (N,) that are uniform at one value and then at another ('' if not)."""
+    first = float(steps[0])
+    leaves = np.flatnonzero(np.abs(steps - first) > tolerance * first)
+    at = int(leaves[0])
+    after = steps[at:]
+    second = float(np.median(after))
+    if not np.all(np.abs(after - second) <= tolerance * second):
+        return ""
+    return (
+        f"; the step changes from {first:.9g} s to {second:.9g} s at sample {at + 1} and stays "
+        "there: the rate changed (tcomp process follows a change of rate; the other verbs need "
+        "one rate: split the record there)"
+    )

@@ -28,6 +28,7 @@ from tcomp_core.io import (
     log_times,
     payloads,
     read_bag,
+    read_csv,
     write_bag,
     write_csv,
 )
@@ -637,3 +638,30 @@ def test_the_output_model_is_fitted_on_as_many_pairs_as_asked(tmp_path, samples)
     )
     assert fitted.record[0].size == samples
     np.testing.assert_array_equal(fitted.record[1], pair.tc1[:samples])
+
+
+def _rate_change_record():
+    """2 s at 500 Hz, then 2 s at 2 kHz of one multisine through both sensors."""
+    slow = simulate_pair("multisine", dt=2e-3, duration=2.0, noise_percent=1.0, seed=8)
+    fast = simulate_pair("multisine", dt=5e-4, duration=2.0, noise_percent=1.0, seed=9)
+    time = np.concatenate((slow.time, slow.time[-1] + 2e-3 + fast.time))
+    return time, np.concatenate((slow.tc1, fast.tc1)), np.concatenate((slow.tc2, fast.tc2))
+
+
+def test_a_rate_change_gets_one_verdict_from_a_csv_and_a_bag(tmp_path):
+    """The same stamps in a CSV and a bag: process follows the change in both (the CSV used
+    to be refused as "not uniformly sampled"); the verbs that need one rate say where it
+    changed."""
+    time, tc1, tc2 = _rate_change_record()
+    source = write_csv(tmp_path / "in.csv", time, tc1, tc2)
+    write_bag(tmp_path / "in_bag", time, dict(zip(DEFAULT_TOPICS[:2], (tc1, tc2), strict=True)))
+    outcomes = [
+        process(source, tmp_path / "out.csv", FAST),
+        process(tmp_path / "in_bag", tmp_path / "out_bag.csv", FAST),
+    ]
+    for outcome in outcomes:
+        assert outcome.pairs == time.size
+        assert any("the sample rate changed 1 time(s)" in text for text in outcome.warnings)
+    assert outcomes[0].gas == outcomes[1].gas > 0.8 * time.size
+    with pytest.raises(DataError, match=r"changes from 0.002 s to 0.0005 s at sample 1001"):
+        read_csv(source)

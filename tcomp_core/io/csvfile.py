@@ -35,7 +35,11 @@ def _looks_numeric(text: str) -> bool:
 
 
 def read_csv(
-    path: str | Path, *, columns: Sequence[str | None] = DEFAULT_COLUMNS, screen: bool = True
+    path: str | Path,
+    *,
+    columns: Sequence[str | None] = DEFAULT_COLUMNS,
+    screen: bool = True,
+    uniform: bool = True,
 ) -> Record:
     """Read a CSV record with a header ``time,tc1,tc2[,ref]``.
 
@@ -50,6 +54,9 @@ def read_csv(
     screen : bool
         Leave out invalid readings and repeated rows (:mod:`tcomp_core.io.screening`); False
         keeps them for the pair matcher of ``tcomp process``, which drops them itself.
+    uniform : bool
+        Require a uniform time step; False only asks for increasing times (``tcomp process``
+        follows a change of rate as it does in a bag).
 
     Returns
     -------
@@ -82,7 +89,9 @@ def read_csv(
         raise DataError(f"{path}: cannot open CSV file: {exc.strerror}") from exc
     try:
         with handle:
-            return _parse_csv(path, csv.reader(handle), tc1_name, tc2_name, ref_name, screen)
+            return _parse_csv(
+                path, csv.reader(handle), tc1_name, tc2_name, ref_name, screen, uniform
+            )
     except UnicodeDecodeError as exc:
         raise DataError(
             f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})"
@@ -98,6 +107,7 @@ def _parse_csv(
     tc2_name: str,
     ref_name: str | None,
     screen: bool,
+    uniform: bool,
 ) -> Record:
     header = next(reader, None)
     if header is None or not any(cell.strip() for cell in header):
@@ -165,6 +175,7 @@ def _parse_csv(
         where=lambda index: f"row {index + 2}",
         index_hint=" (sample k is on row k + 2 of the file)",
         screen=screen,
+        uniform=uniform,
     )
 
 

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ..choices import DEFAULT_COLUMNS, DEFAULT_TOPICS
 from ..errors import DataError
-from ..validation import sample_interval_from_time
+from ..validation import UNIFORM_TOLERANCE, sample_interval_from_time
 
 __all__ = [
     "DEFAULT_COLUMNS",
@@ -215,8 +215,12 @@ def validated_record(
     stamps_ns: NDArray[np.int64] | None = None,
     origin: BagOrigin | None = None,
     screen: bool = True,
+    uniform: bool = True,
 ) -> Record:
     """Screen the samples, check the time vector (strictly increasing, uniform), build the record.
+
+    ``uniform=False`` only asks for increasing times (a stream whose rate may change, read
+    by ``tcomp process``): ``dt`` is then the mean step.
 
     Repeated samples and invalid readings are left out, counted and named by
     :func:`~tcomp_core.io.screening.screen_samples` (``names`` are the readings' columns or
@@ -244,7 +248,9 @@ def validated_record(
     # float64 resolve only ~0.2 µs, too coarse for the spacing check at kHz rates.
     relative = time if stamps_ns is None else (stamps_ns - stamps_ns[0]) / NS_PER_S
     try:
-        dt = sample_interval_from_time(relative, name=time_name)
+        dt = sample_interval_from_time(
+            relative, name=time_name, tolerance=UNIFORM_TOLERANCE if uniform else math.inf
+        )
     except DataError as exc:
         raise DataError(f"{source}: {exc}{index_hint}") from None
     return Record(

@@ -140,8 +140,9 @@ class CsvStream:
 
     def __init__(self, path: Path, columns: tuple[str, str, str | None]) -> None:
         self.path = path
-        # Unscreened: the pair matcher drops and counts invalid readings, as from a bag.
-        self.record = read_csv(path, columns=columns, screen=False)
+        # Unscreened: the pair matcher drops and counts invalid readings, as from a bag; and
+        # like a bag's stamps, the times may change rate (the engine notices and restarts).
+        self.record = read_csv(path, columns=columns, screen=False, uniform=False)
         self.topics = {
             role: topic
             for role, topic in zip(ROLES, DEFAULT_TOPICS, strict=True)
