@@ -420,3 +420,61 @@ def test_fit_output_model_gives_the_default_paths_tau_when_nothing_is_found():
     model = fit_output_model(record, ())
     assert model.applied() == ()
     assert (model.tau1, model.tau2) == default_taus(record)
+
+
+def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
+    """The band and the evidence are weighed against what the effects change, at the fit's
+    own τ: a calibration that changes nothing, fitted at τ 1.5 times the initial ones, makes
+    no change (it carried the τ's whole move before: a conduction changing the gas by 22 °C
+    within a band of ±33 °C passed as a change of 101 °C); and the evidence is the
+    disagreement first order leaves at the better of the two τ."""
+    from tcomp_core.diagnose.identification import identify
+    from tcomp_core.diagnose.uncertainty import ParameterCovariance
+    from tcomp_core.effects import Model, make_context
+
+    sim = simulate_effect(
+        "calibration",
+        "multisine",
+        duration=4.0,
+        noise_percent=1.0,
+        seed=13,
+        params={"gain": 1.0, "offset_c": 0.0},
+    )
+    context = make_context(sim.time, sim.tc1, sim.tc2, sim.dt)
+    truth = (sim.tau1, sim.tau2)
+    model = Model(
+        ("calibration",), {"tau1": truth[0], "tau2": truth[1], "gain": 1.0, "offset_c": 0.0}
+    )
+    names = ("tau1", "tau2", "gain", "offset_c")
+    covariance = ParameterCovariance(
+        names, np.zeros(4), 1e-6 * np.eye(4), np.full(4, -10.0), np.full(4, 10.0), ()
+    )
+    band = signal.butter(2, 0.02)  # the comparison band: the noise left out
+
+    def lowpass(values):
+        return signal.filtfilt(*band, values)
+
+    keep = np.ones(sim.time.size - 1, dtype=bool)
+    keep[:200] = False
+    found = identify(
+        model,
+        covariance,
+        (1.5 * truth[0], 1.5 * truth[1]),
+        (sim.tc1, sim.tc2),
+        context,
+        lowpass,
+        keep,
+        lambda rows: model,
+    )
+    assert found.change_c < 1e-6  # against first order at the fit's own τ: nothing
+    at_initial = identify(
+        Model((), {"tau1": 1.5 * truth[0], "tau2": 1.5 * truth[1]}),
+        covariance,
+        (1.5 * truth[0], 1.5 * truth[1]),
+        (sim.tc1, sim.tc2),
+        context,
+        lowpass,
+        keep,
+        lambda rows: model,
+    )
+    assert found.evidence_c < 0.5 * at_initial.evidence_c  # the better τ's disagreement

@@ -184,3 +184,17 @@ def test_the_fin_filter_of_a_very_long_fin_is_the_wire_alone():
     assert fin_sech(800.0) == 0.0 and fin_sech(1.0) == pytest.approx(1 / math.cosh(1.0))
     zeros, poles = fin_filter(1e-6, 900.0, 1.0)
     assert np.all(np.isfinite(zeros)) and np.all(np.isfinite(poles))
+
+
+def test_the_tau_swing_of_a_film_at_0_kelvin_is_unbounded_not_a_warning():
+    """A wild fit's gas (draw 65: a base error of 2 000 %) put the film below 0 K, and the
+    power law warned "invalid value encountered in scalar power" and gave nan."""
+    import warnings
+
+    from tcomp_core.effects.property import tau_swing
+
+    film = np.concatenate((np.full(50, -40.0), np.linspace(300.0, 600.0, 50)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert tau_swing(0.5, film) == np.inf
+    assert 0.0 < tau_swing(0.5, film[50:]) < 1.0

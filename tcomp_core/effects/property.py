@@ -14,6 +14,7 @@ and wire give.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -67,7 +68,15 @@ def tau_swing(exponent: float, film_k: NDArray[np.float64]) -> float:
         p.
     film_k : ndarray, shape (N,)
         Film (or sensor) temperatures over the record, K.
+
+    Returns
+    -------
+    float
+        The relative change; inf when the film temperatures reach 0 K (a fit's gas gone wild:
+        the power law has no value there, and nothing ordinary does that).
     """
     low, high = np.percentile(film_k, (5.0, 95.0))
     mean = float(np.mean(film_k))
+    if not low > 0.0:
+        return math.inf
     return float(abs((high / mean) ** exponent - (low / mean) ** exponent))
