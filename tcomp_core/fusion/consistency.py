@@ -124,6 +124,7 @@ class ConsistencyCheck:
         #: Samples of the last :meth:`widen` whose std was widened materially (by
         #: :data:`MATERIAL_WIDENING` or more).
         self.last_widened = 0
+        self._last_material = False
 
     def inversion(self, tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> NDArray[np.float64]:
         """The gas over each interval from the two sensors' inversion, shape (M-1,), °C.
@@ -213,7 +214,9 @@ class ConsistencyCheck:
         held_excess = self._hold(excess, self._gas_held, -1.0 / GAS_MEMORY)
         self._gas_held = float(held_excess[-1])
         published = np.maximum(widened, np.sqrt(variance + held_excess))
-        self.last_widened = int(np.count_nonzero(published >= MATERIAL_WIDENING * std))
+        material = published >= MATERIAL_WIDENING * std
+        self.last_widened = int(np.count_nonzero(material))
+        self._last_material = bool(material[-1])
         return published
 
     def widen_prediction(self, std: float) -> float:
@@ -225,8 +228,8 @@ class ConsistencyCheck:
 
     @property
     def widened(self) -> bool:
-        """Whether the last sample's std was widened (the readings disagree with the model)."""
-        return self._innovation_held > CONSISTENCY_THRESHOLD or self._gas_held > 0.0
+        """Whether the last sample's std was widened materially (by MATERIAL_WIDENING or more)."""
+        return self._last_material
 
     @staticmethod
     def _hold(
