@@ -25,7 +25,7 @@ as its slowest closed-loop mode lasts, so their excess is held and decays at tha
 (time constant at most :data:`MAX_HOLD_SAMPLES`). On the node's hostile phases (a sine model
 meeting 500 °C steps at 2 kHz, replayed through ``tcomp process``) the values more than 4 std
 off fell from 3 284 of 5 999 (the model's std) to 695 (the innovations alone, not held) and
-to 75 (both), all within 50 ms of the change from the sine to the steps.
+to 76 (both), all within 50 ms of the change from the sine to the steps.
 """
 
 from __future__ import annotations
