@@ -285,7 +285,7 @@ def identify(
         return lowpass(0.5 * (gas1 + gas2))
 
     gas = gas_of(model)
-    disagreements = []
+    disagreements: list[NDArray[np.float64]] = []
     for taus in ((model.tau1, model.tau2), base_taus):
         first1, first2 = _gas_pair(
             Model((), {"tau1": taus[0], "tau2": taus[1]}), readings, context
