@@ -456,25 +456,15 @@ def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
 
     keep = np.ones(sim.time.size - 1, dtype=bool)
     keep[:200] = False
-    found = identify(
-        model,
-        covariance,
-        (1.5 * truth[0], 1.5 * truth[1]),
-        (sim.tc1, sim.tc2),
-        context,
-        lowpass,
-        keep,
-        lambda rows: model,
-    )
+    initial = (1.5 * truth[0], 1.5 * truth[1])
+
+    def identified(fitted):
+        readings = (sim.tc1, sim.tc2)
+        return identify(
+            fitted, covariance, initial, readings, context, lowpass, keep, lambda _: model
+        )
+
+    found = identified(model)
     assert found.change_c < 1e-6  # against first order at the fit's own τ: nothing
-    at_initial = identify(
-        Model((), {"tau1": 1.5 * truth[0], "tau2": 1.5 * truth[1]}),
-        covariance,
-        (1.5 * truth[0], 1.5 * truth[1]),
-        (sim.tc1, sim.tc2),
-        context,
-        lowpass,
-        keep,
-        lambda rows: model,
-    )
+    at_initial = identified(Model((), {"tau1": initial[0], "tau2": initial[1]}))
     assert found.evidence_c < 0.5 * at_initial.evidence_c  # the better τ's disagreement
