@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 import pytest
-from detailed_physics import Rig, simulate_rig
+from detailed_physics import Rig, Wire, simulate_rig
 
 from tcomp_core.diagnose import diagnose, fit_effects
 from tcomp_core.diagnose.quantisation import detect_quantisation, in_band_variance
@@ -270,6 +270,41 @@ def test_a_delay_on_engine_pulses_is_not_taken_for_its_alias_one_period_away():
     assert found.final.params["delay_s"] == pytest.approx(delay, abs=5e-4)
     assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.02)
     assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.02)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "offset_c"), [(3, -2.0), (11, 1.5)])
+def test_a_delay_behind_a_class_2_offset_is_not_imitated_by_conduction(seed, offset_c):
+    # Four samples between the junctions at 5 kHz and a sensor offset every real pair may
+    # have: a conduction fit absorbs the two together better than the delay alone, so the
+    # greedy staircase took it (tau a third of the truth) and refused the delay after it.
+    rate, speed = 5000.0, 5.0
+    rig = Rig(
+        signal="engine_pulses",
+        duration_s=4.0,
+        rate_hz=rate,
+        seed=seed,
+        wires=(Wire(40e-6), Wire(90e-6)),
+        speed_m_s=speed,
+        spacing_m=4.0 / rate * speed,
+        calibration=(1, 1.0, offset_c),
+    )
+    rec = simulate_rig(rig)
+    sigma = 0.02 * float(np.std(rec.tc1))
+    rng = np.random.default_rng(seed)
+    record = Record(
+        time=rec.time,
+        tc1=rec.tc1 + sigma * rng.standard_normal(rec.time.size),
+        tc2=rec.tc2 + sigma * rng.standard_normal(rec.time.size),
+        ref=rec.gas,
+        source="delay+offset",
+        dt=rec.dt,
+    )
+    found = diagnose(record)
+    assert "delay" in found.final.effects, found.notes
+    assert "conduction" not in found.final.effects, found.notes
+    assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.03)
+    assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.03)
 
 
 @pytest.mark.slow
