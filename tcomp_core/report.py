@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from .diagnose.pipeline import fused_gas
 from .diagnose.residuals import Autocorrelation
 from .diagnose.result import Diagnosis, ModelFit, Suspect
+from .plots import zoom_length
 
 __all__ = ["write_report"]
 
@@ -31,10 +32,6 @@ __all__ = ["write_report"]
 FIGURE_DPI = 90
 #: Most points drawn per line (longer series are thinned by a stride).
 MAX_POINTS = 20_000
-#: The zoomed views show this many periods of the dominant frequency ...
-ZOOM_PERIODS = 5.0
-#: ... or this long when the record has no clear dominant frequency, s.
-ZOOM_DEFAULT_S = 1.0
 
 _STYLE = """
 body { font-family: sans-serif; max-width: 70em; margin: 1em auto; padding: 0 1em;
@@ -105,13 +102,13 @@ def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
 
 
 def _zoom(diagnosis: Diagnosis) -> slice:
-    """About 5 periods of the slow sensor's dominant frequency, from the first held-out block."""
-    measured = (diagnosis.tc1, diagnosis.tc2)[diagnosis.slow - 1]
-    n = measured.size
-    spectrum = np.abs(np.fft.rfft(measured - measured.mean()))
-    peak = int(np.argmax(spectrum[1:])) + 1  # cycles per record
-    length_s = ZOOM_PERIODS * n * diagnosis.dt / peak if peak > 1 else ZOOM_DEFAULT_S
-    length = min(max(10, round(length_s / diagnosis.dt)), n // 2)
+    """Five periods of the signal from the first held-out block.
+
+    The length is :func:`~tcomp_core.plots.zoom_length` of the faster sensor.
+    """
+    fast = (diagnosis.tc1, diagnosis.tc2)[2 - diagnosis.slow]
+    n = fast.size
+    length = zoom_length(fast, diagnosis.dt)
     runs = _runs(diagnosis.validation)
     start = min(int(runs[0][0]) if runs else 0, n - length)
     return slice(start, start + length)

@@ -186,7 +186,7 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
             error = reconstruction_error_percent(ref, values)
             print(f"e_Tg ({label}) = {error:.2f} % against the ref signal")
     if args.png:
-        _plot(args, record, recon.gas, ref)
+        _plot(args, record, recon.gas, ref, variance)
     return 0
 
 
@@ -227,7 +227,7 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
         error = reconstruction_error_percent(ref, gas)
         print(f"e_Tg ({args.reconstruction}) = {error:.2f} % against the ref signal")
     if args.png:
-        _plot(args, record, gas, ref)
+        _plot(args, record, gas, ref, fused.std[:count] ** 2)
     return 0
 
 
@@ -314,7 +314,7 @@ def _run_compensated(
     if args.json is not None:
         _write_json(args, model, errors, shift)
     if args.png:
-        _plot(args, record, gas, ref)
+        _plot(args, record, gas, ref, variance)
     return 0
 
 
@@ -467,10 +467,14 @@ def _plot(
     record: Record,
     gas: NDArray[np.float64],
     ref: NDArray[np.float64] | None,
+    variance: NDArray[np.float64] | None = None,
 ) -> None:
+    import numpy as np
+
     from ..plots import plot_reconstruction
 
-    series = {"tc1": record.tc1, "tc2": record.tc2, "gas (reconstructed)": gas}
-    if ref is not None:
-        series["ref"] = ref
-    print(f"wrote {plot_reconstruction(record.time, series, args.png, str(args.data))}")
+    std = None if variance is None else np.sqrt(variance)
+    path = plot_reconstruction(
+        record.time, record.tc1, record.tc2, gas, args.png, ref=ref, std=std, title=str(args.data)
+    )
+    print(f"wrote {path}")
