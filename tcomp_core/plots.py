@@ -171,6 +171,7 @@ def reconstruction_figure(
     ref: NDArray[np.float64] | None = None,
     std: NDArray[np.float64] | None = None,
     title: str = "",
+    ref_label: str = "ref",
 ) -> Figure:
     """The readings, the reconstructed gas and its error: the whole record and a zoom.
 
@@ -195,6 +196,8 @@ def reconstruction_figure(
         The gas's standard deviation, degrees C.
     title : str
         Figure title (e.g. the input file).
+    ref_label : str
+        How the reference is named (e.g. where it is read).
     """
     count = gas.size
     elapsed, origin = _time_axis(time[:count])
@@ -203,7 +206,7 @@ def reconstruction_figure(
     window = busiest_window(fast, zoom_length(fast, float(np.median(np.diff(time)))))
     if ref is not None:
         ref = ref[:count]
-        error, error_label = gas - ref, "gas − ref"
+        error, error_label = gas - ref, f"gas − {ref_label}"
     else:
         error = tc1[:count] - tc2[:count]
         error_label = "tc1 − tc2 (no ref: the sensors' disagreement)"
@@ -230,7 +233,7 @@ def reconstruction_figure(
             )
         draw(top, t, gas[part], color="tab:green", linewidth=1.0, label="gas (reconstructed)")
         if ref is not None:
-            draw(top, t, ref[part], color="black", linewidth=0.8, linestyle="--", label="ref")
+            draw(top, t, ref[part], color="black", linewidth=0.8, linestyle="--", label=ref_label)
         draw(
             bottom,
             t,
@@ -278,9 +281,12 @@ def plot_reconstruction(
     ref: NDArray[np.float64] | None = None,
     std: NDArray[np.float64] | None = None,
     title: str = "",
+    ref_label: str = "ref",
 ) -> Path:
     """Write :func:`reconstruction_figure` to ``path`` (PNG); returns ``path``."""
-    figure = reconstruction_figure(time, tc1, tc2, gas, ref=ref, std=std, title=title)
+    figure = reconstruction_figure(
+        time, tc1, tc2, gas, ref=ref, std=std, title=title, ref_label=ref_label
+    )
     return _save(figure, path)
 
 

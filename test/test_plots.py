@@ -120,3 +120,33 @@ def test_reconstruct_png_is_written_from_the_cli(tmp_path, capsys):
     )
     assert f"wrote {png}" in capsys.readouterr().out
     assert png.stat().st_size > 10_000
+
+
+def test_the_compensated_picture_reads_the_reference_half_a_sample_on(monkeypatch, tmp_path):
+    # The compensated path's e_Tg reads the reference half a sample on (element k is the gas
+    # over [t_k, t_k+1)); its picture must compare the same way, or a 100 Hz signal at 500 Hz
+    # shows a 2 degC "error" that is only the half-sample offset.
+    import argparse
+
+    import tcomp_core.plots
+    from tcomp_core.cli.reconstruct import _plot
+    from tcomp_core.io import Record
+
+    seen = {}
+
+    def capture(*args, **kwargs):
+        seen.update(kwargs)
+        return tmp_path / "x.png"
+
+    monkeypatch.setattr(tcomp_core.plots, "plot_reconstruction", capture)
+    time = np.arange(200) * 0.01
+    ramp = 10.0 * time
+    record = Record(time=time, tc1=ramp, tc2=ramp, ref=ramp, source="ramp", dt=0.01)
+    args = argparse.Namespace(png=tmp_path / "x.png", data="ramp")
+    gas = ramp[:-1] + 0.05
+    _plot(args, record, gas, ramp[:-1], np.ones(199), half_sample_on=True)
+    assert seen["ref_label"] == "ref half a sample on"
+    assert np.allclose(seen["ref"][20:-20], gas[20:-20])
+    _plot(args, record, gas, ramp[:-1], np.ones(199))
+    assert seen["ref_label"] == "ref"
+    assert np.allclose(seen["ref"], ramp[:-1])

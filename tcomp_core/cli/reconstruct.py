@@ -314,7 +314,7 @@ def _run_compensated(
     if args.json is not None:
         _write_json(args, model, errors, shift)
     if args.png:
-        _plot(args, record, gas, ref, variance)
+        _plot(args, record, gas, ref, variance, half_sample_on=True)
     return 0
 
 
@@ -468,13 +468,32 @@ def _plot(
     gas: NDArray[np.float64],
     ref: NDArray[np.float64] | None,
     variance: NDArray[np.float64] | None = None,
+    *,
+    half_sample_on: bool = False,
 ) -> None:
+    """Write ``--png``.
+
+    ``half_sample_on``: compare with the reference read half a sample on, as the compensated
+    path's e_Tg does (:func:`_print_errors`).
+    """
     import numpy as np
 
+    from ..effects.chain import fractional_shift
     from ..plots import plot_reconstruction
 
     std = None if variance is None else np.sqrt(variance)
+    label = "ref"
+    if ref is not None and half_sample_on and record.ref is not None:
+        ref, label = fractional_shift(record.ref, 0.5)[0][: gas.size], "ref half a sample on"
     path = plot_reconstruction(
-        record.time, record.tc1, record.tc2, gas, args.png, ref=ref, std=std, title=str(args.data)
+        record.time,
+        record.tc1,
+        record.tc2,
+        gas,
+        args.png,
+        ref=ref,
+        std=std,
+        title=str(args.data),
+        ref_label=label,
     )
     print(f"wrote {path}")
