@@ -30,8 +30,7 @@ from .heldout import Evaluator, heldout_error_percent
 from .prepare import PreparedData, block_length_s, prepare
 from .ranking import (
     MAX_EFFECTS,
-    MIN_BLOCK_SHARE,
-    TIE_TOLERANCE,
+    beats_clearly,
     fit_with_effect,
     is_expected_physics,
     is_significant,
@@ -271,19 +270,11 @@ def _clearly_better(candidate: ModelFit, incumbent: ModelFit, phi_hat: float) ->
     """Whether a staircase's last step beats another's clearly.
 
     With more effects it must be significant against it (:func:`.ranking.is_significant`);
-    otherwise its held-out error must be lower by the tie tolerance, and lower in
-    :data:`.ranking.MIN_BLOCK_SHARE` of the validation blocks.
+    otherwise its model error must be clearly lower (:func:`.ranking.beats_clearly`).
     """
     if len(candidate.effects) > len(incumbent.effects):
         return is_significant(incumbent, candidate, phi_hat=phi_hat)
-    before, after = incumbent.block_errors_pct, candidate.block_errors_pct
-    both = np.isfinite(before) & np.isfinite(after)
-    if before.size != after.size or not both.any():
-        return False
-    return bool(
-        candidate.error_pct < (1.0 - TIE_TOLERANCE) * incumbent.error_pct
-        and np.mean(after[both] < before[both]) >= MIN_BLOCK_SHARE
-    )
+    return beats_clearly(candidate, incumbent, raw=False)
 
 
 def _staircase(

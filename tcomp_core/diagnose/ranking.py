@@ -75,6 +75,7 @@ from .signatures import signature
 
 __all__ = [
     "MAX_EFFECTS",
+    "beats_clearly",
     "block_t",
     "fit_with_effect",
     "implausibility",
@@ -390,18 +391,35 @@ def _dominant(
     marked = []
     for suspect, refused in zip(suspects, flags, strict=True):
         fit = suspect.fit
-        if not (suspect.significant or fit is None or refused or _degenerate(fit, current)):
-            for other in accepted:
-                clearly = fit.raw_error_pct < (1.0 - TIE_TOLERANCE) * other.raw_error_pct
-                before, after = other.block_errors_pct, fit.block_errors_pct
-                both = np.isfinite(before) & np.isfinite(after)
-                if before.size != after.size or not both.any():
-                    continue
-                if clearly and float(np.mean(after[both] < before[both])) >= MIN_BLOCK_SHARE:
-                    suspect = replace(suspect, significant=True)
-                    break
+        if (
+            fit is not None
+            and not (suspect.significant or refused or _degenerate(fit, current))
+            and any(beats_clearly(fit, other) for other in accepted)
+        ):
+            suspect = replace(suspect, significant=True)
         marked.append(suspect)
     return marked
+
+
+def beats_clearly(candidate: ModelFit, incumbent: ModelFit, *, raw: bool = True) -> bool:
+    """Whether ``candidate``'s held-out error is clearly below ``incumbent``'s.
+
+    Lower by :data:`TIE_TOLERANCE` (the raw error, or with ``raw`` False the model error with
+    the noise taken out) and lower in :data:`MIN_BLOCK_SHARE` of the validation blocks both
+    scored.
+    """
+    if raw:
+        errors = candidate.raw_error_pct, incumbent.raw_error_pct
+    else:
+        errors = candidate.error_pct, incumbent.error_pct
+    before, after = incumbent.block_errors_pct, candidate.block_errors_pct
+    both = np.isfinite(before) & np.isfinite(after)
+    if before.size != after.size or not both.any():
+        return False
+    return bool(
+        errors[0] < (1.0 - TIE_TOLERANCE) * errors[1]
+        and np.mean(after[both] < before[both]) >= MIN_BLOCK_SHARE
+    )
 
 
 def implausibility(fit: ModelFit, evaluator: Evaluator) -> str:
