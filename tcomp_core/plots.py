@@ -7,7 +7,6 @@ headless machines and in worker processes.
 from __future__ import annotations
 
 import math
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -140,10 +139,9 @@ def _envelope(ax: Axes, time: NDArray, values: NDArray, **style: Any) -> None:
         ax.plot(time, values, **style)
         return
     edges = np.linspace(0, values.size, MAX_POINTS // 2 + 1).astype(int)
-    with np.errstate(invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN bin is drawn as a gap
-        low = np.fmin.reduceat(values, edges[:-1])
-        high = np.fmax.reduceat(values, edges[:-1])
+    # fmin/fmax skip NaN; an all-NaN bin stays NaN and is drawn as a gap.
+    low = np.fmin.reduceat(values, edges[:-1])
+    high = np.fmax.reduceat(values, edges[:-1])
     centres = time[(edges[:-1] + edges[1:] - 1) // 2]
     color, label = style.get("color"), style.get("label")
     ax.fill_between(centres, low, high, color=color, alpha=0.5, linewidth=0, label=label)
