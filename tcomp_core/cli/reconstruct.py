@@ -139,6 +139,7 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
     import numpy as np
 
     from ..estimators.mleiv import phi_from_data
+    from ..fusion.adequacy import first_order_misfit
     from ..metrics import reconstruction_error_percent
     from ..noise import model_noise
     from ..reconstruct import gas_noise_variance, noise_gain, reconstruct
@@ -164,7 +165,16 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
     if args.postfilter_hz is None:  # white noise through Eq. 7 alone: its variance is known
         noise1, noise2 = model_noise(record.tc1, record.tc2, record.dt, tau1, tau2)
         spread = gas_noise_variance(*poles, recon.weight1, noise1.sigma, noise2.sigma)
-        variance = np.full(count, spread)
+        # What the first-order model does not explain, as the smoother's std holds it.
+        misfit = first_order_misfit(
+            record.tc1, record.tc2, record.dt, tau1, tau2, noise1.sigma, noise2.sigma
+        )
+        variance = np.full(count, spread + misfit.excess_c**2)
+        gas_std = math.sqrt(max(float(np.nanvar(recon.gas)) - spread, 0.0))
+        if misfit.material(gas_std):
+            _warn_misfit(
+                record, misfit.describe(gas_std), "tcomp diagnose names the missing physics"
+            )
     written, ref = _write_gas(args, record, recon.gas, variance)
     print(
         f"wrote {written}: gas temperature at {count} of {record.tc1.size} samples "
@@ -209,6 +219,7 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
         return _run_difference(record, args, tau1, tau2)
     if fused.note:
         print(f"tcomp reconstruct: note: {fused.note}", file=sys.stderr)
+    _warn_misfit(record, fused.misfit_warning, "tcomp diagnose names the missing physics")
     model = fused.model
     settings = f"q = {model.q:.4g}"
     if model.kind in ("band-limited", "periodic"):
@@ -229,6 +240,16 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
     if args.png:
         _plot(args, record, gas, ref, fused.std[:count] ** 2)
     return 0
+
+
+def _warn_misfit(record: Record, warning: str, remedy: str) -> None:
+    """Warn that the readings depart from the model the gas is reconstructed with."""
+    if warning:
+        warnings.warn(
+            f"{record.source}: {warning}. {remedy}, and --effects auto compensates what it finds",
+            TcompWarning,
+            stacklevel=1,
+        )
 
 
 def _check_difference_options(args: argparse.Namespace) -> None:
@@ -300,6 +321,7 @@ def _run_compensated(
         )
         gas, shift = result.gas[:count], result.level_shift_c
         variance = result.std[:count] ** 2 + model_band_variance(model)
+        _warn_misfit(record, result.fusion.misfit_warning, "the output model lacks physics")
         print(
             f"{args.reconstruction}: signal model {result.fusion.kind}; median std of the "
             f"estimate {np.median(np.sqrt(variance)):.4g} degC (the output model's band "

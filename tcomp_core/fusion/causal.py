@@ -267,7 +267,7 @@ class CausalFuser:
         widened = self.consistency.widen(
             std, innovations[:, skip:], inverse[skip:], gas, inversion
         )
-        return gas, widened
+        return gas, np.hypot(widened, self.model.misfit_c)
 
     def _exact_batch(
         self,
@@ -348,4 +348,4 @@ class CausalFuser:
         else:
             variance = float(c @ self._gains.predicted @ c)
         std = self.consistency.widen_prediction(math.sqrt(max(variance, 0.0)))
-        return float(c @ self._state), std
+        return float(c @ self._state), math.hypot(std, self.model.misfit_c)

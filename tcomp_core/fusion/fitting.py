@@ -23,6 +23,7 @@ from ..models import lag_frequency_response, tau_to_pole
 from ..noise import model_noise
 from ..reconstruct import Reconstruction, reconstruct
 from ..validation import check_pair, check_sample_interval
+from .adequacy import Misfit, first_order_misfit
 from .kalman import innovation_log_likelihood
 from .signal_model import MODELS, FusionModel, ModelChoice, ModelKind, butterworth_unit_variance
 
@@ -133,12 +134,16 @@ class _Fitting:
         Gas temperature variance estimated from the Eq. (7) reconstruction less its noise, °C².
     freq_hz : float
         Strongest spectral line, Hz.
+    misfit : Misfit
+        How far the readings depart from the first-order model at these τ (its excess is
+        ``base.misfit_c``).
     """
 
     base: FusionModel
     y: NDArray[np.float64]
     scale: float
     freq_hz: float
+    misfit: Misfit
 
     def cost(self, model: FusionModel) -> float:
         """Negative log-likelihood, nats (finite, for the optimisers)."""
@@ -407,11 +412,26 @@ class SignalModelFits:
         Why each model that could not be fitted failed.
     requested : str
         The model asked for ('auto' or a name).
+    misfit : Misfit or None
+        How far the readings depart from the first-order model at the τ given (None when the
+        record could not be prepared).
+    gas_std_c : float
+        Standard deviation of the gas estimated from the readings, degrees C (NaN when
+        unknown).
     """
 
     ranked: list[tuple[FusionModel, float]]
     failures: dict[str, str]
     requested: str
+    misfit: Misfit | None = None
+    gas_std_c: float = math.nan
+
+    @property
+    def misfit_warning(self) -> str:
+        """The first-order model's misfit in a sentence, when material ('' otherwise)."""
+        if self.misfit is None or not self.misfit.material(self.gas_std_c):
+            return ""
+        return self.misfit.describe(self.gas_std_c)
 
     @property
     def candidates(self) -> dict[str, float]:
@@ -520,7 +540,9 @@ def fit_signal_models(
         if fitted or model == "auto" or not fallback:
             break
     fitted.sort(key=lambda item: item[1] - item[0].n_hyperparameters, reverse=True)
-    return SignalModelFits(fitted, failures, model)
+    return SignalModelFits(
+        fitted, failures, model, misfit=fit.misfit, gas_std_c=math.sqrt(fit.scale)
+    )
 
 
 #: Most samples the likelihood of a signal model is evaluated on. Its few hyper-parameters
@@ -546,7 +568,17 @@ def _prepare(
 ) -> _Fitting:
     """Noise levels, gas variance and spectral line shared by the fits of one record."""
     s1, s2 = _noise_sigmas(first, second, (dt, tau1, tau2), sigma1, sigma2)
-    base = FusionModel(kind="random-walk", dt=dt, tau1=tau1, tau2=tau2, sigma1=s1, sigma2=s2, q=1)
+    misfit = first_order_misfit(first, second, dt, tau1, tau2, s1, s2)
+    base = FusionModel(
+        kind="random-walk",
+        dt=dt,
+        tau1=tau1,
+        tau2=tau2,
+        sigma1=s1,
+        sigma2=s2,
+        q=1,
+        misfit_c=misfit.excess_c,
+    )
     level = float(np.mean(first))
     likelihood = _likelihood_stretch(first.size)
     return _Fitting(
@@ -554,6 +586,7 @@ def _prepare(
         y=np.vstack((first[likelihood] - level, second[likelihood] - level)),
         scale=_gas_variance(first, second, base),
         freq_hz=_dominant_frequency(first, second, base),
+        misfit=misfit,
     )
 
 

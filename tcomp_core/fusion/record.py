@@ -40,6 +40,10 @@ class FusionResult:
     note : str
         Signal models that could not be fitted or used, and which one was used instead ('' when
         the model asked for was used).
+    misfit_warning : str
+        How far the readings depart from the first-order model at the τ given, when that is
+        material ('' otherwise, and when the model was given): ``std`` holds that departure
+        (:attr:`FusionModel.misfit_c`), the gas does not correct it.
     """
 
     time: NDArray[np.float64]
@@ -50,6 +54,7 @@ class FusionResult:
     candidates: dict[str, float] = field(default_factory=dict)
     causal: bool = False
     note: str = ""
+    misfit_warning: str = ""
 
     @property
     def kind(self) -> str:
@@ -152,6 +157,7 @@ def fuse(
             candidates=fits.candidates,
             causal=causal,
             note=note,
+            misfit_warning=fits.misfit_warning,
         )
     reasons = SignalModelFits([], failures, fits.requested).note(None)
     raise EstimationError(f"no signal model of the gas could be used: {reasons}")

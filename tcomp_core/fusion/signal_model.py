@@ -62,6 +62,10 @@ class FusionModel:
         change (``autoregressive``: d_k = Σ φ_j d_(k-j) + e_k, g_k = g_(k-1) + d_k, e_k of
         variance ``q`` in °C² per sample); stationary (all roots of 1 - Σ φ_j z^-j inside the
         unit circle).
+    misfit_c : float
+        The sensors' first-order disagreement beyond their noise on the record the model was
+        fitted on, degrees C (:func:`~tcomp_core.fusion.adequacy.first_order_misfit`): model
+        error no signal model can remove, added in quadrature to every std the model gives.
     """
 
     kind: ModelKind
@@ -75,6 +79,7 @@ class FusionModel:
     level_q: float = 0.0
     order: int = 2
     ar: tuple[float, ...] = ()
+    misfit_c: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in MODELS:
@@ -84,6 +89,8 @@ class FusionModel:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}={value!r} must be finite and > 0")
+        if not (math.isfinite(self.misfit_c) and self.misfit_c >= 0.0):
+            raise ValueError(f"misfit_c={self.misfit_c!r} must be finite and >= 0")
         if self.freq_hz >= 0.5 / self.dt:
             raise ValueError(f"freq_hz={self.freq_hz!r} must lie below the Nyquist frequency")
         if self.order not in range(1, 9):

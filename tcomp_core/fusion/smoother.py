@@ -104,4 +104,4 @@ def smoothed_gas(
     closing = np.hstack((innovations[:, 1:], np.zeros((2, 1))))
     inverse = np.asarray(np.linalg.inv(gains.innovation), dtype=np.float64)
     std = widen_smoothed(model, gains.closed_loop, std, closing, inverse, gas, first, second)
-    return gas, std, forward.log_likelihood
+    return gas, np.hypot(std, model.misfit_c), forward.log_likelihood

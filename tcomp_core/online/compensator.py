@@ -229,6 +229,30 @@ class OnlineCompensator:
         return reconstructor.note if isinstance(reconstructor, KalmanReconstructor) else ""
 
     @property
+    def misfit_warning(self) -> str:
+        """How far the readings depart from the model whose gas is published, when material.
+
+        '' when they do not, or while Eq. (7) publishes; the Kalman filter's std holds the
+        departure (:attr:`~tcomp_core.fusion.FusionModel.misfit_c`).
+        """
+        if self._extended is not None:
+            return self._extended.misfit_warning
+        reconstructor = self._reconstructor
+        if isinstance(reconstructor, KalmanReconstructor):
+            return reconstructor.misfit_warning
+        return ""
+
+    @property
+    def misfit_c(self) -> float:
+        """The published gas's model misfit held in its std, degrees C (0 for Eq. 7)."""
+        reconstructor = self._reconstructor
+        if self._extended is not None:
+            reconstructor = self._extended.reconstructor
+        if not isinstance(reconstructor, KalmanReconstructor) or reconstructor.model is None:
+            return 0.0
+        return reconstructor.model.misfit_c
+
+    @property
     def window_samples(self) -> int:
         """Sample pairs in the estimation window."""
         return 0 if self._estimator is None else self._estimator.samples_held

@@ -169,6 +169,14 @@ class ExtendedOutput:
         reconstructor = self._reconstructor
         return reconstructor.note if isinstance(reconstructor, KalmanReconstructor) else ""
 
+    @property
+    def misfit_warning(self) -> str:
+        """How far the equivalent readings depart from first order, when material ('' if not)."""
+        reconstructor = self._reconstructor
+        if isinstance(reconstructor, KalmanReconstructor):
+            return reconstructor.misfit_warning
+        return ""
+
     def restart(self, stamps_start_over: bool = False) -> None:
         """Forget the stream: at a gap, or (``stamps_start_over``) a discontinuity of the stamps.
 

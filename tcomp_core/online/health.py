@@ -133,7 +133,9 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
         ``reconstruction`` (what makes the published gas: ``kalman`` or ``difference``),
         ``signal_model`` (the Kalman filter's, ``(interim)`` until the fitted one lands; ''
         for Eq. 7), ``signal_model_note`` (what could not be fitted and what is used
-        instead), ``tracking_memory_s``, ``window_samples``, ``window_s``,
+        instead), ``first_order_misfit_c`` (°C: the readings' departure from the model the
+        filter's std holds, :func:`~tcomp_core.fusion.adequacy.first_order_misfit`),
+        ``tracking_memory_s``, ``window_samples``, ``window_s``,
         ``sample_period_s``, ``gaps``, ``rate_changes`` (times the stamps' rate changed and
         the window restarted), ``fit_error_pct``, ``noise_floor_pct``,
         ``model_error_pct``, ``condition``, ``latest_tau1_s``, ``latest_tau2_s``, the 95 %
@@ -154,6 +156,7 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
         "reconstruction": engine.reconstruction,
         "signal_model": engine.signal_model_name,
         "signal_model_note": engine.fusion_note,
+        "first_order_misfit_c": format_value(engine.misfit_c),
         "tracking_memory_s": format_value(config.tracking_memory_s),
         "window_samples": str(engine.window_samples),
         "window_s": format_value(config.window_s),
@@ -407,6 +410,8 @@ class HealthMonitor:
                 f"{max(published - self._published_at_report, widened)} gas values since the "
                 "last report carry a std widened 2x or more"
             )
+        if engine.misfit_warning:
+            notes.append(engine.misfit_warning)
         if engine.rate_note:  # until an estimate at the new rate is accepted
             notes.append(engine.rate_note)
         if notes:

@@ -114,6 +114,9 @@ class FilterBuild:
         Whether the signal model was fitted (not only retuned to a new τ).
     quick : bool
         Whether 'auto' compared the quick models only (a full refit is due).
+    misfit_warning : str
+        How far the fitted stretch departs from the first-order model, when material ('' when
+        not, and for a retune): :attr:`~tcomp_core.fusion.SignalModelFits.misfit_warning`.
     """
 
     fuser: CausalFuser | None
@@ -122,6 +125,7 @@ class FilterBuild:
     samples: int
     refit: bool
     quick: bool = False
+    misfit_warning: str = ""
 
 
 def build_filter(request: FilterRequest) -> FilterBuild:
@@ -135,8 +139,9 @@ def build_filter(request: FilterRequest) -> FilterBuild:
     if request.segment is None:
         if request.previous is None:
             raise ValueError("a retune needs the model in use")
+        # The misfit measured at the fit's τ stays: a retune moves τ by little.
         candidates = [replace(request.previous, tau1=tau1, tau2=tau2)]
-        fits_note, failures, refit = "", {}, False
+        fits_note, failures, refit, misfit_warning = "", {}, False, ""
     else:
         fits = fit_signal_models(
             request.segment[:, 0],
@@ -149,6 +154,7 @@ def build_filter(request: FilterRequest) -> FilterBuild:
         )
         candidates = [model for model, _ in fits.ranked]
         fits_note, failures, refit = "", dict(fits.failures), True
+        misfit_warning = fits.misfit_warning
     stamps, tc1, tc2 = request.prime
     for model in candidates:
         try:
@@ -170,6 +176,7 @@ def build_filter(request: FilterRequest) -> FilterBuild:
             0 if request.segment is None else request.segment.shape[0],
             refit,
             request.quick and refit,
+            misfit_warning,
         )
     reasons = SignalModelFits([], failures, request.signal_model).note(None)
     return FilterBuild(
@@ -211,6 +218,9 @@ class KalmanReconstructor:
         self.quick = False
         #: What the last build could not do and what it used instead ('' when nothing).
         self.note = ""
+        #: How far the stretch the filter was fitted on departs from the first-order model,
+        #: when material ('' otherwise): the filter's std holds it.
+        self.misfit_warning = ""
         #: Values of the last :meth:`reconstruct` whose std was widened 2x or more because the
         #: readings disagree with the filter's model (:mod:`tcomp_core.fusion.consistency`).
         self.last_widened = 0
@@ -269,6 +279,7 @@ class KalmanReconstructor:
         if build.refit:
             self.samples = build.samples
             self.quick = build.quick
+            self.misfit_warning = build.misfit_warning
         if stamps.size - start >= 2:
             steps = np.diff(stamps[start:]) * 1e-9
             self.reconstruct(

@@ -266,7 +266,7 @@ def _dropped_warnings(source: Path, counters: PairCounters) -> list[str]:
 
 
 def _stream_warnings(source: Path, pairs: int, engine: Engine) -> list[str]:
-    """What a user must know about the published gas: pairs left without one, rate changes."""
+    """What a user must know about the published gas: pairs without one, rate changes, misfit."""
     compensator = engine.compensator
     warnings = []
     if compensator.rate_changes:
@@ -284,6 +284,8 @@ def _stream_warnings(source: Path, pairs: int, engine: Engine) -> list[str]:
         else:
             why = "gaps in the stamps, screened readings, or before an estimate was accepted"
         warnings.append(f"{source}: no gas for {missing} of {pairs} pairs: {why}")
+    if compensator.misfit_warning:  # as the last filter fitted on the stream saw it
+        warnings.append(f"{source}: {compensator.misfit_warning}")
     return warnings
 
 
