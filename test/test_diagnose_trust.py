@@ -308,6 +308,36 @@ def test_a_delay_behind_a_class_2_offset_is_not_imitated_by_conduction(seed, off
 
 
 @pytest.mark.slow
+def test_a_phase_no_first_order_pair_has_makes_the_delay_significant():
+    """Exhaust pulses at 0.5 kHz, tc2 read 3.6 samples (7 ms) late: at the 40 Hz firing the
+    readings' ratio has a phase of about -100°, which no two first-order lags give. The
+    delay's refit lowered the held-out error but failed the block rules, and conduction took
+    the verdict with τ 3.8 times too long; the measured phase makes the delay significant."""
+    rate, speed = 500.0, 7.0
+    rig = Rig(
+        signal="engine_pulses",
+        duration_s=4.0,
+        rate_hz=rate,
+        seed=34,
+        wires=(Wire(50e-6), Wire(150e-6)),
+        speed_m_s=speed,
+        spacing_m=3.6 / rate * speed,
+        noise_c=(0.4, 0.4),
+        calibration=(1, 1.004, 1.2),  # within IEC 60584 class 2
+    )
+    rec = simulate_rig(rig)
+    record = Record(
+        time=rec.time, tc1=rec.tc1, tc2=rec.tc2, ref=rec.gas, source="late tc2", dt=rec.dt
+    )
+    found = diagnose(record)
+    assert found.verdict == "delay", [
+        (s.effect, s.error_pct, s.significant) for s in found.suspects
+    ]
+    assert found.final.params["delay_s"] == pytest.approx(rec.truth["delay_s"], rel=0.1)
+    assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.6)
+
+
+@pytest.mark.slow
 def test_a_strong_property_effect_is_found_with_its_exponent():
     sim = simulate_effect("property", "multisine", noise_percent=1.0, seed=1)
     found = diagnose(_record(sim))

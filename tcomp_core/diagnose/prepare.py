@@ -12,6 +12,7 @@ both sides of every held-out block.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -21,6 +22,7 @@ from scipy import signal
 
 from ..errors import DataError, NoExcitationError, TcompError
 from ..estimators import estimate
+from ..fusion.adequacy import phase_beyond_lags
 from ..io import Record
 from ..noise import NoiseEstimate, estimate_noise, model_noise, signal_band_edge
 from ..validation import check_excitation
@@ -85,6 +87,15 @@ class PreparedData:
     block_starts: NDArray[np.intp]
     noise_source: str = "spectra"
     quantisation: tuple[Quantisation | None, Quantisation | None] = (None, None)
+
+    @functools.cached_property
+    def channel_phase_deg(self) -> float:
+        """Phase of tc2 against tc1 beyond the ±90° of any two first-order lags, degrees.
+
+        NaN when it lies within (:func:`~tcomp_core.fusion.adequacy.phase_beyond_lags`):
+        measured, not fitted, the mark of a delay between the channels.
+        """
+        return phase_beyond_lags(self.tc1, self.tc2, self.dt)[0]
 
     @property
     def phi_hat(self) -> float:

@@ -43,6 +43,7 @@ __all__ = [
     "SIGNAL_COHERENCE",
     "Misfit",
     "first_order_misfit",
+    "phase_beyond_lags",
 ]
 
 #: Upper quantile of the highest of the band's Welch bins of pure noise (χ² with the
@@ -227,6 +228,37 @@ def _phase_beyond_lags(
         return math.nan, math.nan
     strongest = int(np.argmax(np.where(counts, power, -np.inf)))
     return float(np.degrees(np.angle(ratio[strongest]))), float(freqs[strongest])
+
+
+def phase_beyond_lags(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float
+) -> tuple[float, float]:
+    """The measured phase of tc2 relative to tc1 where it lies clearly beyond ±90°.
+
+    Needs no model: no two first-order sensors, whatever their τ, gain or offset, give it.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C, every ``dt`` seconds.
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    phase_deg, freq_hz : float
+        The phase (degrees) and its frequency (Hz) at the strongest coherent frequency where
+        it lies beyond ±90° by :data:`PHASE_Z` standard errors; NaNs when there is none or the
+        record is too short to tell.
+    """
+    first = np.asarray(tc1, dtype=np.float64)
+    second = np.asarray(tc2, dtype=np.float64)
+    nperseg = _segment(first.size)
+    segments = _segments(first.size, nperseg)
+    if segments < MIN_SEGMENTS:
+        return math.nan, math.nan
+    freqs, coherence, ratio, power = _spectra(first, second, dt, nperseg)
+    return _phase_beyond_lags(freqs, coherence, ratio, power, segments)
 
 
 def first_order_misfit(
