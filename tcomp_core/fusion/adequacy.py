@@ -13,9 +13,11 @@ model it is the two readings' white noise through the inversions, whose spectrum
 σ1 and σ2; whatever stands above that spectrum is model error. At least one of the two
 inversions is off by half of it, and an effect that acts on both wires moves the gas by a
 multiple of it (:data:`~tcomp_core.diagnose.identification.MAX_CHANGE_PER_EVIDENCE`): the
-excess is the least the gas's std must hold (:func:`first_order_misfit`). Its mean is left out
-(two sensors of one class differ in level by a degree or two: a calibration matter, the same
-for any τ).
+excess is what the gas's std must hold (:func:`first_order_misfit`). It bounds the error of the
+inversions, not of a filter that rejects part of it: mains on one channel, amplified by the
+inversions, gave an excess of 188 °C where the smoother's gas was 20 °C off (and its std,
+already 108 °C, said so). Its mean is left out (two sensors of one class differ in level by a
+degree or two: a calibration matter, the same for any τ).
 
 A second check needs no model at all: the ratio of two first-order lags,
 ``(1 + iωτ1) / (1 + iωτ2)``, has a phase within ±90° at every frequency, whatever τ1 and τ2.
@@ -122,17 +124,6 @@ class Misfit:
         if self.phase_note:
             text += f"; {self.phase_note}"
         return text
-
-    def summary(self) -> dict[str, float | None]:
-        """JSON-ready form (NaN as None)."""
-        values = {
-            "excess_c": self.excess_c,
-            "disagreement_c": self.disagreement_c,
-            "noise_c": self.noise_c,
-            "phase_deg": self.phase_deg,
-            "phase_hz": self.phase_hz,
-        }
-        return {key: value if math.isfinite(value) else None for key, value in values.items()}
 
 
 def _segment(size: int) -> int:
