@@ -56,6 +56,7 @@ from sensor_msgs.msg import Temperature
 from tcomp_core.compensation import OutputModel
 from tcomp_core.errors import DataError
 from tcomp_core.io import Encoder, decode_message
+from tcomp_core.memory import pin_mmap_threshold
 from tcomp_core.online import DIAGNOSTICS_PERIOD_S, Engine, GasBatch, Health, OnlineConfig
 from tcomp_core.online.health import format_value as _fmt
 from tcomp_core.parameters import PARAMETERS, ParameterSpec
@@ -474,6 +475,7 @@ class LatencyHistogram:
 
 def main(args: Sequence[str] | None = None) -> int:
     """Entry point of ``compensator_node`` (accepts ``--ros-args``)."""
+    pin_mmap_threshold()  # weeks of window-sized numpy arrays must not fragment the heap
     rclpy.init(args=None if args is None else list(args))
     try:
         node = CompensatorNode()

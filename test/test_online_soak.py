@@ -1,0 +1,98 @@
+"""A long-running engine keeps a bounded state: nothing it holds grows with the pairs it took.
+
+The node runs for weeks (issue 27): once the engine's window and its newest pairs
+(``RECENT_S``) are full, feeding it more must not keep more Python memory. The soak bench
+(``bench/bench_soak.py``) measures the process's RSS; this test checks the engine itself,
+with tracemalloc, at a low rate so that a minute of pairs is quick to fill.
+"""
+
+from __future__ import annotations
+
+import gc
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from tcomp_core.memory import heap_info, pin_mmap_threshold
+from tcomp_core.online import DIAGNOSTICS_PERIOD_S, Engine, OnlineConfig
+from tcomp_core.online.compensator import LANDED_KEPT, RECENT_S
+from tcomp_core.simulate import simulate_pair
+from tcomp_core.workers import InlineRunner
+
+RATE = 100  # pairs a second: RECENT_S of them fill in a few thousand pairs
+BATCH = 5  # samples of each input per drain
+
+
+def _drive(engine: Engine, pair, start: int, drains: int) -> None:
+    """Feed ``drains`` drains of ``pair`` (repeated) from drain ``start``, as the node does."""
+    update_every = round(engine.config.update_period_s * RATE / BATCH)
+    report_every = round(DIAGNOSTICS_PERIOD_S * RATE / BATCH)
+    for drain in range(start, start + drains):
+        index = np.arange(drain * BATCH, (drain + 1) * BATCH)
+        stamps = 10**18 + index * (1_000_000_000 // RATE)
+        k = index % pair.tc1.size
+        now = (drain + 1) * BATCH / RATE
+        engine.add_samples(0, stamps, pair.tc1[k], now)
+        engine.add_samples(1, stamps, pair.tc2[k], now)
+        engine.reconstruct()
+        if (drain + 1) % update_every == 0:
+            engine.update_estimate(now)
+        if (drain + 1) % report_every == 0:
+            engine.poll_diagnosis(now)
+            engine.diagnosis.log = []  # the node logs and empties it at each report
+            engine.report(now, new_period=True)
+
+
+def test_the_engine_holds_no_more_after_its_buffers_are_full():
+    # 10 s of a 1 Hz sinusoid (a whole number of periods: repeated seamlessly), seeded noise.
+    pair = simulate_pair(
+        "sinusoid",
+        tau1=0.05,
+        tau2=0.25,
+        dt=1.0 / RATE,
+        duration=10.0,
+        noise_percent=1.0,
+        seed=27,
+        signal_params={"freq_hz": 1.0},
+    )
+    config = OnlineConfig(window_s=2.0, update_period_s=0.5, reconstruction="difference")
+    engine = Engine(config, diagnosis_runner=InlineRunner())
+    warm = round(1.5 * RECENT_S * RATE / BATCH)  # the newest pairs full, and turned over
+    _drive(engine, pair, 0, warm)
+    assert engine.compensator.tau is not None
+    drains = round(RECENT_S * RATE / BATCH)
+    tracemalloc.start()
+    try:
+        # Only blocks allocated while tracing count: the newest pairs turn over once first.
+        _drive(engine, pair, warm, drains)
+        gc.collect()
+        before = tracemalloc.get_traced_memory()[0]
+        _drive(engine, pair, warm + drains, drains)
+        gc.collect()
+        grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    # 1200 drains: a single small object kept per drain would be > 60 KiB.
+    assert grown < 48 * 1024, f"{grown} bytes kept over {drains} drains"
+    recent = engine.compensator.recent
+    assert recent.size <= recent.capacity + BATCH
+    assert len(recent.parts) <= recent.capacity // BATCH + 1
+    assert len(engine.compensator._landed) <= LANDED_KEPT
+    assert not engine.compensator._backlog
+
+
+@pytest.mark.skipif(heap_info() is None, reason="glibc's mallinfo2 is needed")
+def test_a_pinned_mmap_threshold_keeps_freed_large_arrays_out_of_the_heap():
+    # Unpinned, glibc raises its threshold to 16 MiB when the 16 MiB array is freed, and the
+    # next 8 MiB array comes from a heap (to stay there once freed); pinned, it has a mapping
+    # of its own, returned when freed.
+    assert pin_mmap_threshold()
+    big = np.ones(16 << 20, np.uint8)
+    del big
+    before = heap_info()
+    array = np.ones((8 << 20) + 4096, np.uint8)
+    after = heap_info()
+    assert before is not None and after is not None
+    assert after.mapped_blocks == before.mapped_blocks + 1
+    del array
