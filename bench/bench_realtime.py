@@ -111,17 +111,21 @@ def child_publisher(args: argparse.Namespace) -> None:
 
     rate = float(round(args.rate))
     n = round(rate * args.duration)
+    # A long run (bench_soak.py) repeats the first --loop-s seconds of the signal instead of
+    # holding hours of it (a whole number of the sinusoid's periods: the repeat is seamless).
+    simulated = min(n, round(rate * args.loop_s)) if args.loop_s > 0 else n
     sim = simulate_pair(
         "sinusoid",
         tau1=SIGNAL["tau1"],
         tau2=SIGNAL["tau2"],
         dt=1.0 / rate,
-        duration=n / rate,
+        duration=simulated / rate,
         noise_percent=SIGNAL["noise_percent"],
         signal_params={"freq_hz": SIGNAL["freq_hz"]},
     )
     tc1, tc2 = sim.tc1.tolist(), sim.tc2.tolist()
-    n = min(n, len(tc1))
+    n = min(n, len(tc1)) if simulated == n else n
+    loop = len(tc1)
 
     rclpy.init()
     node = rclpy.create_node("bench_publisher")
@@ -162,8 +166,8 @@ def child_publisher(args: argparse.Namespace) -> None:
             batch_sent_ns.append(now)
             for j in range(k, due):
                 stamp = t0 + (j * giga) // rate_int
-                publish1(encode(stamp, tc1[j]))
-                publish2(encode(stamp, tc2[j]))
+                publish1(encode(stamp, tc1[j % loop]))
+                publish2(encode(stamp, tc2[j % loop]))
             k = due
         next_tick += tick_s
         pause = next_tick - time.monotonic()
@@ -246,7 +250,7 @@ def child_counter(args: argparse.Namespace) -> None:
     last = [0.0]
 
     def on_tick(now: float) -> None:
-        if now - last[0] >= 0.1:
+        if now - last[0] >= args.timeline_s:
             last[0] = now
             timeline.append((time.time_ns(), count[0]))
 
@@ -319,6 +323,8 @@ def child_main(argv: list[str]) -> None:
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--pub-period-ms", type=float, default=1.0)
     parser.add_argument("--match-timeout", type=float, default=30.0)
+    parser.add_argument("--loop-s", type=float, default=0.0, help="publisher: repeat after, s")
+    parser.add_argument("--timeline-s", type=float, default=0.1, help="counter: timeline step")
     args = parser.parse_args(argv)
     CHILDREN[args.role](args)
 
@@ -836,6 +842,23 @@ def _compensator_rows(row, args, name: str, comp: dict, stats: dict) -> None:
     row("node stop on SIGINT", json.dumps(comp["node_stop"]))
 
 
+def child_environment() -> tuple[int, dict[str, str]]:
+    """A private ROS domain on localhost for the children, and their environment."""
+    domain = 1 + (os.getpid() * 7) % 100
+    env = dict(os.environ)
+    env.update(
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        ROS_DOMAIN_ID=str(domain),
+        PYTHONUNBUFFERED="1",
+        # the repository first, whether or not the package is installed in the venv
+        PYTHONPATH=os.pathsep.join(
+            [str(HERE.parent), *filter(None, [os.environ.get("PYTHONPATH")])]
+        ),
+    )
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    return domain, env
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["--child"]:
@@ -884,18 +907,7 @@ def main(argv: list[str] | None = None) -> int:
     factors = [float(x) for x in args.baseline_factors.split(",") if x.strip()]
 
     workdir = Path(tempfile.mkdtemp(prefix="bench_realtime_"))
-    domain = 1 + (os.getpid() * 7) % 100
-    env = dict(os.environ)
-    env.update(
-        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-        ROS_DOMAIN_ID=str(domain),
-        PYTHONUNBUFFERED="1",
-        # the repository first, whether or not the package is installed in the venv
-        PYTHONPATH=os.pathsep.join(
-            [str(HERE.parent), *filter(None, [os.environ.get("PYTHONPATH")])]
-        ),
-    )
-    env.pop("ROS_LOCALHOST_ONLY", None)
+    domain, env = child_environment()
     children = Children(workdir, env)
     sampler = CpuSampler()
 
