@@ -143,14 +143,30 @@ def _inversion_gain(freqs: NDArray[np.float64], dt: float, tau: float) -> NDArra
     return (1.0 - 2.0 * a * np.cos(omega) + a * a) / (1.0 - a) ** 2
 
 
-def _spectra(
-    first: NDArray[np.float64], second: NDArray[np.float64], dt: float, nperseg: int
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.complex128], NDArray]:
-    """Welch estimates of the readings on segments of ``nperseg`` samples.
+@dataclass(frozen=True)
+class _Spectra:
+    """Welch estimates of a pair of readings, on segments of ``nperseg`` samples.
 
-    Returns frequencies (Hz), coherence, the ratio tc2/tc1 and tc2's coherent power (°C²/Hz),
-    each shape (M,).
+    ``freqs`` (Hz), ``coherence``, ``ratio`` (tc2/tc1) and ``power`` (tc2's coherent power,
+    °C²/Hz), shape (M,) each; ``segments`` half-overlapping segments.
     """
+
+    freqs: NDArray[np.float64]
+    coherence: NDArray[np.float64]
+    ratio: NDArray[np.complex128]
+    power: NDArray[np.float64]
+    nperseg: int
+    segments: int
+
+
+def _spectra(
+    first: NDArray[np.float64], second: NDArray[np.float64], dt: float
+) -> _Spectra | None:
+    """The readings' Welch estimates (None for a record too short to judge)."""
+    nperseg = _segment(first.size)
+    segments = _segments(first.size, nperseg)
+    if segments < MIN_SEGMENTS:
+        return None
     options = {"fs": 1.0 / dt, "nperseg": nperseg, "detrend": "linear"}
     freqs, p11 = signal.welch(first, **options)  # type: ignore[call-overload]
     _, p22 = signal.welch(second, **options)  # type: ignore[call-overload]
@@ -159,7 +175,7 @@ def _spectra(
         coherence = np.abs(p12) ** 2 / (p11 * p22)
         ratio = p12 / p11
     coherence = np.where(np.isfinite(coherence), coherence, 0.0)
-    return freqs, coherence, ratio, p22 * coherence
+    return _Spectra(freqs, coherence, ratio, p22 * coherence, nperseg, segments)
 
 
 def _excess(
@@ -193,18 +209,18 @@ def _excess(
     return max(excess, 0.0), float(np.sum(noise_density[band[: psd.size]]) * df)
 
 
-def _phase_beyond_lags(
-    freqs: NDArray[np.float64],
-    coherence: NDArray[np.float64],
-    ratio: NDArray[np.complex128],
-    power: NDArray[np.float64],
-    segments: int,
-) -> tuple[float, float]:
+def _phase_beyond_lags(spectra: _Spectra) -> tuple[float, float]:
     """(phase in degrees, frequency in Hz) of tc2/tc1 beyond ±90°, or NaNs.
 
     Of the frequencies where the measured phase lies clearly beyond ±90° and that carry at
     least :data:`PHASE_POWER_SHARE` of tc2's coherent power, the one carrying the most.
     """
+    freqs, coherence, ratio, power = (
+        spectra.freqs,
+        spectra.coherence,
+        spectra.ratio,
+        spectra.power,
+    )
     coherent = coherence > COHERENT
     coherent[0] = False
     total = float(np.sum(power[1:]))
@@ -212,7 +228,7 @@ def _phase_beyond_lags(
         return math.nan, math.nan
     # Standard error of the phase of a Welch transfer estimate (Bendat & Piersol), radians.
     with np.errstate(divide="ignore", invalid="ignore"):
-        spread = np.sqrt((1.0 - coherence) / (2.0 * segments * coherence))
+        spread = np.sqrt((1.0 - coherence) / (2.0 * spectra.segments * coherence))
     beyond = np.abs(np.degrees(np.angle(ratio))) - 90.0 - PHASE_Z * np.degrees(spread)
     counts = coherent & (beyond > 0.0) & (power >= PHASE_POWER_SHARE * total)
     if not np.any(counts):
@@ -242,14 +258,8 @@ def phase_beyond_lags(
         it lies beyond ±90° by :data:`PHASE_Z` standard errors; NaNs when there is none or the
         record is too short to tell.
     """
-    first = np.asarray(tc1, dtype=np.float64)
-    second = np.asarray(tc2, dtype=np.float64)
-    nperseg = _segment(first.size)
-    segments = _segments(first.size, nperseg)
-    if segments < MIN_SEGMENTS:
-        return math.nan, math.nan
-    freqs, coherence, ratio, power = _spectra(first, second, dt, nperseg)
-    return _phase_beyond_lags(freqs, coherence, ratio, power, segments)
+    spectra = _spectra(np.asarray(tc1, np.float64), np.asarray(tc2, np.float64), dt)
+    return (math.nan, math.nan) if spectra is None else _phase_beyond_lags(spectra)
 
 
 def first_order_misfit(
@@ -283,8 +293,8 @@ def first_order_misfit(
     """
     first = np.asarray(tc1, dtype=np.float64)
     second = np.asarray(tc2, dtype=np.float64)
-    nperseg = _segment(first.size)
-    if _segments(first.size, nperseg) < MIN_SEGMENTS:
+    spectra = _spectra(first, second, dt)
+    if spectra is None:
         return Misfit(excess_c=0.0, disagreement_c=0.0, noise_c=0.0)
     inversions = []
     for reading, tau in ((first, tau1), (second, tau2)):
@@ -292,12 +302,11 @@ def first_order_misfit(
         inversions.append((reading[1:] - a * reading[:-1]) / (1.0 - a))
     disagreement = inversions[0] - inversions[1]
     disagreement = disagreement - float(np.mean(disagreement))
-    freqs, coherence, ratio, power = _spectra(first, second, dt, nperseg)
-    band = coherence >= SIGNAL_COHERENCE
-    excess, noise = _excess(disagreement, dt, nperseg, band, (tau1, tau2), (sigma1, sigma2))
-    phase_deg, phase_hz = _phase_beyond_lags(
-        freqs, coherence, ratio, power, _segments(first.size, nperseg)
+    band = spectra.coherence >= SIGNAL_COHERENCE
+    excess, noise = _excess(
+        disagreement, dt, spectra.nperseg, band, (tau1, tau2), (sigma1, sigma2)
     )
+    phase_deg, phase_hz = _phase_beyond_lags(spectra)
     return Misfit(
         excess_c=math.sqrt(excess),
         disagreement_c=float(np.sqrt(np.mean(disagreement**2))),
