@@ -859,6 +859,26 @@ def child_environment() -> tuple[int, dict[str, str]]:
     return domain, env
 
 
+def node_parameters(items: list[str]) -> dict[str, str]:
+    """``-p NAME:=VALUE`` options as a dict (exits naming the first one that is not)."""
+    values = {}
+    for item in items:
+        name, separator, value = item.partition(":=")
+        if not (name and separator):
+            raise SystemExit(f"-p {item!r} is not NAME:=VALUE")
+        values[name] = value
+    return values
+
+
+def interrupt_on_sigterm() -> None:
+    """Make SIGTERM a KeyboardInterrupt, so that the children are stopped as on Ctrl-C."""
+
+    def on_term(signum, _frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    signal.signal(signal.SIGTERM, on_term)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["--child"]:
@@ -897,11 +917,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--node-profile", action="store_true", help="with --node-probe: cProfile")
     args = parser.parse_args(argv)
     NODE_PARAMETERS["prefilter_hz"] = str(float(args.prefilter_hz))
-    for item in args.node_param:
-        name, separator, value = item.partition(":=")
-        if not (name and separator):
-            parser.error(f"--node-param {item!r} is not NAME:=VALUE")
-        NODE_PARAMETERS[name] = value
+    NODE_PARAMETERS.update(node_parameters(args.node_param))
     if args.quick:
         args.duration = 10.0
     factors = [float(x) for x in args.baseline_factors.split(",") if x.strip()]
@@ -911,10 +927,7 @@ def main(argv: list[str] | None = None) -> int:
     children = Children(workdir, env)
     sampler = CpuSampler()
 
-    def on_term(signum, _frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    signal.signal(signal.SIGTERM, on_term)
+    interrupt_on_sigterm()
     print(
         f"bench_realtime: rate {args.rate:g} Hz per sensor, duration {args.duration:g} s, "
         f"ROS_DOMAIN_ID={domain}, work dir {workdir}",

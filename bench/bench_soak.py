@@ -377,13 +377,7 @@ def _descendants(pid: int) -> list[int]:
 # ------------------------------------------------------------------------------------------------
 def parameters(args: argparse.Namespace) -> dict[str, str]:
     """The node's parameters: bench_realtime.py's, then the ``-p`` ones."""
-    values = dict(rt.NODE_PARAMETERS)
-    for item in args.node_param:
-        name, separator, value = item.partition(":=")
-        if not (name and separator):
-            raise SystemExit(f"-p {item!r} is not NAME:=VALUE")
-        values[name] = value
-    return values
+    return {**rt.NODE_PARAMETERS, **rt.node_parameters(args.node_param)}
 
 
 def print_report(args: argparse.Namespace, result: dict) -> None:
@@ -454,10 +448,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default="", help="also write the figures to this file")
     args = parser.parse_args(argv)
 
-    def on_term(signum, _frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    signal.signal(signal.SIGTERM, on_term)
+    rt.interrupt_on_sigterm()
     print(
         f"bench_soak: mode {args.mode}, {args.duration:g} s, warm-up {args.warmup:g} s, "
         f"{args.rate:g} Hz per sensor, parameters {parameters(args)}",
