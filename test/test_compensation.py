@@ -321,6 +321,25 @@ def test_a_fit_is_applied_only_when_the_data_pin_it_down(
         assert reason in judge_output(model, 1000)
 
 
+def test_a_determined_parameter_whose_interval_reaches_its_physical_bound_is_not_pinned():
+    """Radiation fitted on a record without it: rho1 is determined (a finite covariance, off
+    its bound) but its 95 % interval reaches 0, so the data do not pin it down, and the
+    printout, the JSON and ``pinned`` say so; the fit is not refused for it alone."""
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.io import Record
+
+    sim = simulate_effect("none", "multisine", duration=10.0, noise_percent=2.0, seed=11)
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="t", dt=sim.dt)
+    found = fit_effects(record, ("radiation",)).final.identification
+    rho1 = next(check for check in found.checks if check.name == "rho1")
+    assert rho1.determined and not rho1.at_bound and rho1.low == 0.0 < rho1.value
+    assert not rho1.pinned and "reaches 0" in rho1.loose
+    assert "NOT pinned down: its 95 % interval reaches 0" in rho1.describe()
+    summary = rho1.summary()
+    assert summary["determined"] and not summary["pinned"] and summary["loose"] == rho1.loose
+    assert rho1 not in found.undetermined()
+
+
 def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied():
     """The identification measured on real fits: a strong delay is applied, a calibration
     far below its own uncertainty on the gas is not (its parameters are determined all the

@@ -387,9 +387,9 @@ def _refusal(
     applied = tuple(piece.effect for piece in pieces if piece.handling != "first order")
     if found is None or not applied:
         return ""
-    unpinned = found.unpinned(applied)
-    if unpinned:
-        listed = "; ".join(f"{check.name} {check.reason}" for check in unpinned)
+    undetermined = found.undetermined(applied)
+    if undetermined:
+        listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
         return f"not pinned down by the data ({listed}): first order is what they identify"
     if found.extrapolates:
         return (

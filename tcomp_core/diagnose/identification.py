@@ -13,7 +13,13 @@ each of its effects' parameters is checked, from the fit's covariance
 
 and its correlation with τ1 and τ2 is reported (radiation's ρ correlates with τ by its very
 form, τ/(1 + ρ) being what the dynamics see, so a correlation alone refuses nothing: the band
-below carries it).
+below carries it). A parameter that passes both is **pinned down** only when its 95 % interval
+is narrower than the physics allows anyway: an interval that reaches a bound of the physical
+range (a radiative ratio whose interval reaches 0) or spans :data:`LOOSE_SHARE` of the range
+or more (a property exponent of −1.5 .. 1.5) is **loose**, and the report says so. A loose
+parameter refuses nothing by itself: what it does to the gas is what the band measures (a wall
+temperature anywhere in −73 .. 509 °C behind a radiative ratio near 0 moves the gas by
+nothing), and a model whose band is as wide as its change is refused.
 
 And the model as a whole: the **95 % band** on the gas must be narrower than the **change** its
 effects make to the gas, against the first-order model at the fit's own τ (a τ that moves is
@@ -48,11 +54,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..effects import FitContext, Model
+from ..effects.base import ParamSpec
 from ..errors import EstimationError
 from .uncertainty import Z95, ParameterCovariance
 
 __all__ = [
     "JACKKNIFE_BLOCKS",
+    "LOOSE_SHARE",
     "MAX_CHANGE_PER_EVIDENCE",
     "Identification",
     "ParameterCheck",
@@ -70,6 +78,9 @@ JACKKNIFE_BLOCKS = 5
 #: at least as √d) and the ratio stays below 3; beyond 4 the correction rests on the model's
 #: form, not on anything the two signals show.
 MAX_CHANGE_PER_EVIDENCE = 4.0
+#: Share of a parameter's range (its search bounds) at or beyond which its 95 % interval is
+#: loose: the data then bound it little better than the range does.
+LOOSE_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -88,7 +99,11 @@ class ParameterCheck:
     at_bound : bool
         On a bound of its physical range.
     reason : str
-        Why it is not pinned down ('' when it is).
+        Why the fit does not determine it, which refuses the model ('' when determined and
+        off its bounds).
+    loose : str
+        Why its interval is too wide to pin it down although it is determined ('' when
+        narrow); refuses nothing by itself (module notes).
     """
 
     effect: str
@@ -99,11 +114,17 @@ class ParameterCheck:
     tau_correlation: float
     at_bound: bool
     reason: str = ""
+    loose: str = ""
+
+    @property
+    def determined(self) -> bool:
+        """Whether the fit determines the parameter (covariance exists, off its bounds)."""
+        return not self.reason
 
     @property
     def pinned(self) -> bool:
-        """Whether the data pin the parameter down."""
-        return not self.reason
+        """Whether the data pin the parameter down: determined, with a narrow interval."""
+        return not (self.reason or self.loose)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready form (NaN as None)."""
@@ -114,13 +135,20 @@ class ParameterCheck:
             "interval_95": [_finite(self.low), _finite(self.high)],
             "tau_correlation": _finite(self.tau_correlation),
             "at_bound": self.at_bound,
+            "determined": self.determined,
             "pinned": self.pinned,
             "reason": self.reason,
+            "loose": self.loose,
         }
 
     def describe(self) -> str:
-        """One line: value, interval, correlation, band, verdict."""
-        state = "pinned down" if self.pinned else f"NOT pinned down: {self.reason}"
+        """One line: value, interval, correlation, verdict."""
+        if self.reason:
+            state = f"NOT pinned down: {self.reason}"
+        elif self.loose:
+            state = f"NOT pinned down: {self.loose} (the gas band decides what it may change)"
+        else:
+            state = "pinned down"
         return (
             f"{self.name} = {self.value:.4g} (95 % {self.low:.4g} .. {self.high:.4g}; "
             f"|corr. with tau| {self.tau_correlation:.3f}): {state}"
@@ -155,12 +183,15 @@ class Identification:
     evidence_c: float = math.nan
     band_note: str = ""
 
-    def unpinned(self, effects: tuple[str, ...] | None = None) -> tuple[ParameterCheck, ...]:
-        """The checks that failed, of ``effects`` (None: all)."""
+    def undetermined(self, effects: tuple[str, ...] | None = None) -> tuple[ParameterCheck, ...]:
+        """The parameters the fit does not determine (singular, or on a bound).
+
+        Of ``effects`` (None: all); any of them refuses the model.
+        """
         return tuple(
             check
             for check in self.checks
-            if not check.pinned and (effects is None or check.effect in effects)
+            if not check.determined and (effects is None or check.effect in effects)
         )
 
     @property
@@ -243,6 +274,26 @@ def _jackknife_band(
     return Z95 * math.sqrt(float(np.mean(variance))), ""
 
 
+def _looseness(spec: ParamSpec, low: float, high: float) -> str:
+    """Why the 95 % interval ``low .. high`` is too wide to pin ``spec`` down ('' if narrow).
+
+    The interval is clipped to the bounds, so reaching a physical bound shows as equality.
+    """
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return ""
+    if spec.physical:
+        for bound in (spec.lower, spec.upper):
+            if (low <= bound <= high) or math.isclose(bound, low) or math.isclose(bound, high):
+                return f"its 95 % interval reaches {bound:.4g}, a bound of its physical range"
+    share = (high - low) / (spec.upper - spec.lower)
+    if share >= LOOSE_SHARE:
+        return (
+            f"its 95 % interval spans {100.0 * share:.0f} % of its range "
+            f"{spec.lower:.4g} .. {spec.upper:.4g}"
+        )
+    return ""
+
+
 def identify(
     model: Model,
     covariance: ParameterCovariance,
@@ -299,6 +350,7 @@ def identify(
     change_c = _rms(change, keep)
     evidence_c = min(_rms(values, keep) for values in disagreements)
     band_c, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free)
+    specs = {spec.name: spec for effect in model.instances for spec in effect.specs(context)}
     effect_of = {
         spec.name: effect.name for effect in model.instances for spec in effect.specs(context)
     }
@@ -325,6 +377,7 @@ def identify(
                 tau_correlation=max(finite) if finite else math.nan,
                 at_bound=name in covariance.at_bound,
                 reason=reason,
+                loose="" if reason else _looseness(specs[name], low, high),
             )
         )
     return Identification(
