@@ -265,11 +265,11 @@ def test_the_rules_say_how_each_effect_is_treated():
         )
 
 
-def _check(name, reason=""):
+def _check(name, reason="", loose="", range_share=0.05, effect="delay"):
     from tcomp_core.diagnose.identification import ParameterCheck
 
     return ParameterCheck(
-        effect="delay",
+        effect=effect,
         name=name,
         value=0.004,
         low=0.003,
@@ -277,6 +277,8 @@ def _check(name, reason=""):
         tau_correlation=0.5,
         at_bound=False,
         reason=reason,
+        loose=loose,
+        range_share=range_share,
     )
 
 
@@ -289,6 +291,12 @@ def _check(name, reason=""):
         ((), 3.0, 2.0, 2.0, False, "95 % band on the gas"),
         ((), math.nan, 2.0, 2.0, False, "95 % band on the gas"),
         ((), 0.2, 3.0, 0.5, False, "rest on the model's form"),
+        # Determined, but its interval spans 95 % of its range: an undone effect is refused.
+        (("", "its 95 % interval spans 95 %", 0.95), 0.2, 3.0, 2.0, False, "spans 95 %"),
+        # Loose short of free: the band decides.
+        (("", "its 95 % interval spans 60 %", 0.6), 0.2, 3.0, 2.0, True, ""),
+        # Reaching a bound (a ratio that may be 0) with a narrow interval refuses nothing.
+        (("", "its 95 % interval reaches 0", 0.1), 0.2, 3.0, 2.0, True, ""),
     ],
 )
 def test_a_fit_is_applied_only_when_the_data_pin_it_down(
@@ -321,10 +329,10 @@ def test_a_fit_is_applied_only_when_the_data_pin_it_down(
         assert reason in judge_output(model, 1000)
 
 
-def test_a_determined_parameter_whose_interval_reaches_its_physical_bound_is_not_pinned():
+def test_a_determined_parameter_whose_interval_spans_its_physical_range_is_not_pinned():
     """Radiation fitted on a record without it: rho1 is determined (a finite covariance, off
-    its bound) but its 95 % interval reaches 0, so the data do not pin it down, and the
-    printout, the JSON and ``pinned`` say so; the fit is not refused for it alone."""
+    its bound) but its 95 % interval reaches 0 and spans most of its physical range, so the
+    data do not pin it down, and the printout, the JSON and ``pinned`` say so."""
     from tcomp_core.diagnose import fit_effects
     from tcomp_core.io import Record
 
@@ -333,11 +341,29 @@ def test_a_determined_parameter_whose_interval_reaches_its_physical_bound_is_not
     found = fit_effects(record, ("radiation",)).final.identification
     rho1 = next(check for check in found.checks if check.name == "rho1")
     assert rho1.determined and not rho1.at_bound and rho1.low == 0.0 < rho1.value
-    assert not rho1.pinned and "reaches 0" in rho1.loose
-    assert "NOT pinned down: its 95 % interval reaches 0" in rho1.describe()
+    assert not rho1.pinned and rho1.range_share > 0.5 and rho1.loose.startswith("its 95 %")
+    assert f"NOT pinned down: {rho1.loose}" in rho1.describe()
     summary = rho1.summary()
     assert summary["determined"] and not summary["pinned"] and summary["loose"] == rho1.loose
     assert rho1 not in found.undetermined()
+
+
+def test_a_level_handled_as_dynamics_is_not_refused_for_a_loose_parameter():
+    """Calibration is undone for the dynamics only, its level first order's: a gain spanning
+    its range is the band's business, not a refusal (the band here is narrow)."""
+    from tcomp_core.compensation import output_model_from_diagnosis
+    from tcomp_core.diagnose.identification import Identification
+
+    found = Identification(
+        checks=(_check("gain", "", "spans 95 %", 0.95, effect="calibration"),),
+        band_c=0.2,
+        change_c=3.0,
+        evidence_c=2.0,
+    )
+    diagnosis = _diagnosis_with(("calibration",), {}, identification=found, taus=(0.03, 0.12))
+    model = output_model_from_diagnosis(diagnosis)
+    assert model.pieces[0].handling == "dynamics"
+    assert not found.checks[0].pinned and found.checks[0].free
 
 
 def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied():

@@ -25,8 +25,10 @@ These are the "never worse" rules: no piece the data cannot fix moves from first
 without a stated prior, and every output says which rule each effect followed. Above them, a
 fit is not trusted with the gas at all (every piece ``first order``, on the first-order model's
 τ) when it is no physical sensor (:meth:`~tcomp_core.effects.Model.implausible`), when a
-parameter of an applied effect is not pinned down by the data (singular, or on a bound of its
-physical range), when the change it makes to the gas is several times the two sensors'
+parameter of an applied effect is not determined by the data (singular, or on a bound of its
+physical range), when a parameter of an effect it undoes (``compensated`` or ``prior``) is
+free (its 95 % interval spans 90 % of its range or more: the data say nothing of it), when
+the change it makes to the gas is several times the two sensors'
 disagreement (the only evidence of what first order lacks), or when the 95 % band on the gas
 (refits leaving out one stretch of the record at a time) is as wide as that change
 (:mod:`tcomp_core.diagnose.identification`).
@@ -69,6 +71,11 @@ FIRST_ORDER = "first-order"
 #: A first-order τ whose 95 % interval spans more than this factor is not determined: pure
 #: noise gives 0.004..8 s, two sensors in one gas at K = 60 % a factor of 2.
 MAX_TAU_INTERVAL_RATIO = 10.0
+
+#: Handlings that undo an effect with all its fitted parameters: none of them may be free
+#: (:attr:`~tcomp_core.diagnose.identification.ParameterCheck.free`).
+#: ``dynamics`` is already the fallback for a level the data do not fix, and its band decides.
+_UNDONE = ("compensated", "prior")
 
 #: Effects a causal stream cannot apply: a velocity's τ(t) is known only over the fitted
 #: record; a level-dependent τ's film temperature is a zero-phase low-pass of the gas.
@@ -390,6 +397,11 @@ def _refusal(
     undetermined = found.undetermined(applied)
     if undetermined:
         listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
+        return f"not pinned down by the data ({listed}): first order is what they identify"
+    undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
+    loose = [check for check in found.checks if check.effect in undone and check.free]
+    if loose:
+        listed = "; ".join(f"{check.name}: {check.loose}" for check in loose)
         return f"not pinned down by the data ({listed}): first order is what they identify"
     if found.extrapolates:
         return (

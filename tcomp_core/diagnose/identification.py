@@ -16,10 +16,17 @@ form, τ/(1 + ρ) being what the dynamics see, so a correlation alone refuses no
 below carries it). A parameter that passes both is **pinned down** only when its 95 % interval
 is narrower than the physics allows anyway: an interval that reaches a bound of the physical
 range (a radiative ratio whose interval reaches 0) or spans :data:`LOOSE_SHARE` of the range
-or more (a property exponent of −1.5 .. 1.5) is **loose**, and the report says so. A loose
-parameter refuses nothing by itself: what it does to the gas is what the band measures (a wall
-temperature anywhere in −73 .. 509 °C behind a radiative ratio near 0 moves the gas by
-nothing), and a model whose band is as wide as its change is refused.
+or more (a property exponent of −1.5 .. 1.5; in the search coordinates, the logarithm for a
+time constant) is **loose**, and the report says so. Reaching a bound refuses nothing by
+itself (a thin wire's radiative ratio may well be 0 while the thick one's is not); an effect
+the gas would undo with all its parameters (:mod:`tcomp_core.compensation.plan`) is not
+applied when one of them is **free**, its interval spanning :data:`FREE_SHARE` of its range or
+more: the data say nothing of it (conduction on a mixing rig with a hidden speed drift, the
+supports' lag and temperatures spanning 95–100 % of their ranges, made the gas 8 → 58 % off).
+A loose parameter short of that is the band's business: the covariance overstates some
+intervals (a true radiation's ρ1 spans 51–59 % of 0 .. 0.2 while its gas band is narrow),
+and a level the data do not fix moves the gas by nothing when it is not applied (a wall
+temperature anywhere in −73 .. 509 °C behind a radiative ratio near 0).
 
 And the model as a whole: the **95 % band** on the gas must be narrower than the **change** its
 effects make to the gas, against the first-order model at the fit's own τ (a τ that moves is
@@ -59,6 +66,7 @@ from ..errors import EstimationError
 from .uncertainty import Z95, ParameterCovariance
 
 __all__ = [
+    "FREE_SHARE",
     "JACKKNIFE_BLOCKS",
     "LOOSE_SHARE",
     "MAX_CHANGE_PER_EVIDENCE",
@@ -81,6 +89,8 @@ MAX_CHANGE_PER_EVIDENCE = 4.0
 #: Share of a parameter's range (its search bounds) at or beyond which its 95 % interval is
 #: loose: the data then bound it little better than the range does.
 LOOSE_SHARE = 0.5
+#: Share at or beyond which the parameter is free: the data say nothing of it.
+FREE_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -103,7 +113,10 @@ class ParameterCheck:
         off its bounds).
     loose : str
         Why its interval is too wide to pin it down although it is determined ('' when
-        narrow); refuses nothing by itself (module notes).
+        narrow; module notes).
+    range_share : float
+        Share of its range (search bounds, in the search coordinates) its 95 % interval
+        spans (NaN when not determined).
     """
 
     effect: str
@@ -115,6 +128,12 @@ class ParameterCheck:
     at_bound: bool
     reason: str = ""
     loose: str = ""
+    range_share: float = math.nan
+
+    @property
+    def free(self) -> bool:
+        """Whether its interval spans :data:`FREE_SHARE` of its range or more."""
+        return bool(self.range_share >= FREE_SHARE)
 
     @property
     def determined(self) -> bool:
@@ -139,6 +158,7 @@ class ParameterCheck:
             "pinned": self.pinned,
             "reason": self.reason,
             "loose": self.loose,
+            "range_share": _finite(self.range_share),
         }
 
     def describe(self) -> str:
@@ -146,7 +166,7 @@ class ParameterCheck:
         if self.reason:
             state = f"NOT pinned down: {self.reason}"
         elif self.loose:
-            state = f"NOT pinned down: {self.loose} (the gas band decides what it may change)"
+            state = f"NOT pinned down: {self.loose}"
         else:
             state = "pinned down"
         return (
@@ -274,24 +294,28 @@ def _jackknife_band(
     return Z95 * math.sqrt(float(np.mean(variance))), ""
 
 
-def _looseness(spec: ParamSpec, low: float, high: float) -> str:
-    """Why the 95 % interval ``low .. high`` is too wide to pin ``spec`` down ('' if narrow).
+def _looseness(spec: ParamSpec, low: float, high: float) -> tuple[str, float]:
+    """Why the 95 % interval ``low .. high`` is too wide to pin ``spec`` down, and its share.
 
-    The interval is clipped to the bounds, so reaching a physical bound shows as equality.
+    ('' when narrow.) The share is of the range, in the search coordinates (the logarithm for
+    a time constant). The interval is clipped to the bounds, so reaching a physical bound
+    shows as equality.
     """
     if not (math.isfinite(low) and math.isfinite(high)):
-        return ""
-    if spec.physical:
-        for bound in (spec.lower, spec.upper):
-            if (low <= bound <= high) or math.isclose(bound, low) or math.isclose(bound, high):
-                return f"its 95 % interval reaches {bound:.4g}, a bound of its physical range"
-    share = (high - low) / (spec.upper - spec.lower)
+        return "", math.nan
+    scale = math.log if spec.name.startswith("tau") else float
+    share = (scale(high) - scale(low)) / (scale(spec.upper) - scale(spec.lower))
     if share >= LOOSE_SHARE:
         return (
             f"its 95 % interval spans {100.0 * share:.0f} % of its range "
             f"{spec.lower:.4g} .. {spec.upper:.4g}"
-        )
-    return ""
+        ), share
+    if spec.physical:
+        for bound in (spec.lower, spec.upper):
+            if (low <= bound <= high) or math.isclose(bound, low) or math.isclose(bound, high):
+                reach = f"its 95 % interval reaches {bound:.4g}, a bound of its physical range"
+                return reach, share
+    return "", share
 
 
 def identify(
@@ -367,6 +391,7 @@ def identify(
             reason = "the data do not determine it (singular fit)"
         elif name in covariance.at_bound:
             reason = "on a bound of its physical range"
+        loose, share = ("", math.nan) if reason else _looseness(specs[name], low, high)
         checks.append(
             ParameterCheck(
                 effect=effect_of[name],
@@ -377,7 +402,8 @@ def identify(
                 tau_correlation=max(finite) if finite else math.nan,
                 at_bound=name in covariance.at_bound,
                 reason=reason,
-                loose="" if reason else _looseness(specs[name], low, high),
+                loose=loose,
+                range_share=share,
             )
         )
     return Identification(
