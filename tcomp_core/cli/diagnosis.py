@@ -5,14 +5,21 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .common import add_force_argument
 
 if TYPE_CHECKING:
     from ..diagnose import Diagnosis
+    from ..diagnose.windowed import WindowedDiagnosis
 
-__all__ = ["add_outputs", "format_diagnosis", "write_diagnosis"]
+__all__ = [
+    "add_outputs",
+    "format_diagnosis",
+    "format_windowed",
+    "write_diagnosis",
+    "write_windowed",
+]
 
 
 def add_outputs(parser: argparse.ArgumentParser) -> None:
@@ -25,13 +32,10 @@ def add_outputs(parser: argparse.ArgumentParser) -> None:
 def write_diagnosis(diagnosis: Diagnosis, args: argparse.Namespace) -> int:
     """Print the diagnosis, write ``--json`` and ``--report`` if given; returns exit status 0."""
     from ..diagnose import diagnosis_to_dict
-    from ..io import atomic_output
 
     print(format_diagnosis(diagnosis))
     if args.json:
-        with atomic_output(args.json, args.force, [args.data]) as temporary:
-            temporary.write_text(json.dumps(diagnosis_to_dict(diagnosis), indent=2) + "\n")
-        print(f"json: {args.json}")
+        _write_json(diagnosis_to_dict(diagnosis), args)
     if args.report:
         from ..report import write_report  # matplotlib only when a report is asked for
 
@@ -94,4 +98,80 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
     for name, value in diagnosis.ref_error_pct.items():
         lines.append(f"reference vs {name}: {value:.3g} % of its spread")
     lines.extend(f"note: {note}" for note in diagnosis.notes)
+    return "\n".join(lines)
+
+
+def _write_json(document: dict[str, Any], args: argparse.Namespace) -> None:
+    """Write ``--json`` (atomically, never over the input) and say where."""
+    from ..io import atomic_output
+
+    with atomic_output(args.json, args.force, [args.data]) as temporary:
+        temporary.write_text(json.dumps(document, indent=2) + "\n")
+    print(f"json: {args.json}")
+
+
+def write_windowed(result: WindowedDiagnosis, args: argparse.Namespace) -> int:
+    """Print a diagnosis in windows and write ``--json`` if given; returns exit status 0."""
+    from ..diagnose.windowed import windowed_to_dict
+
+    print(format_windowed(result))
+    if args.json:
+        _write_json(windowed_to_dict(result), args)
+    return 0
+
+
+def format_windowed(result: WindowedDiagnosis) -> str:
+    """The text ``tcomp diagnose`` prints for a record diagnosed in windows.
+
+    One row per window (start, samples, τ1 and τ2 with their 95 % intervals, held-out error,
+    verdict and the final model's effects, or why it was not diagnosed), then the whole
+    record's verdict and τ, the windows that disagree and the windows' notes.
+    """
+
+    def tau(value: float, interval: tuple[float, float] | None) -> str:
+        if interval is None:
+            return f"{value:.4g}"
+        return f"{value:.4g} [{interval[0]:.4g}, {interval[1]:.4g}]"
+
+    rows = result.windows
+    how = "chosen for a record this long" if result.automatic else "as asked"
+    lines = [
+        f"{result.source}: {len(rows)} windows of {result.window_s:g} s ({how}), each "
+        "diagnosed on its own",
+        f"  {'window':>6} {'start s':>8} {'samples':>8}  {'tau1 s [95 %]':<28} "
+        f"{'tau2 s [95 %]':<28} {'error %':>8}  {'verdict':<12} effects",
+    ]
+    for row in rows:
+        head = f"  {row.index + 1:>6} {row.start_s:>8.6g} {row.samples:>8}  "
+        if row.verdict is None:
+            lines.append(f"{head}not diagnosed: {row.problem}")
+            continue
+        mark = "" if row.votes else "  (short last window: no vote)"
+        lines.append(
+            f"{head}{tau(row.tau1, row.tau1_95):<28} {tau(row.tau2, row.tau2_95):<28} "
+            f"{row.error_pct:>8.3g}  {row.verdict:<12} {', '.join(row.effects) or '-'}{mark}"
+        )
+    whole = result.whole
+    lines.append(
+        f"whole record: verdict {whole.verdict} (the verdict of {whole.agree} of "
+        f"{whole.voting} windows); tau1 = {whole.tau1:.5g} s, tau2 = {whole.tau2:.5g} s "
+        f"(medians over those windows; ranges {whole.tau1_range[0]:.4g} .. "
+        f"{whole.tau1_range[1]:.4g} s and {whole.tau2_range[0]:.4g} .. "
+        f"{whole.tau2_range[1]:.4g} s)"
+    )
+    if whole.disagreeing:
+        others = {row.index: row for row in rows}
+        listed = ", ".join(
+            f"{index + 1} at {others[index].start_s:g} s: {others[index].verdict}"
+            for index in whole.disagreeing
+        )
+        lines.append(f"windows disagree: {listed}")
+    missing = [row for row in rows if row.verdict is None]
+    if missing:
+        lines.append(
+            f"not diagnosed: {len(missing)} of {len(rows)} windows (their rows say why); the "
+            "verdict rests on the others"
+        )
+    for row in rows:
+        lines.extend(f"note: window {row.index + 1}: {note}" for note in row.notes)
     return "\n".join(lines)

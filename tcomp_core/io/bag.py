@@ -47,7 +47,14 @@ from .record import (
 from .rows import column
 from .temperature import TemperatureBatch, decode_rows, encode
 
-__all__ = ["WRITE_BLOCK", "read_bag", "read_topics", "write_bag", "write_bag_copy"]
+__all__ = [
+    "WRITE_BLOCK",
+    "paired_record",
+    "read_bag",
+    "read_topics",
+    "write_bag",
+    "write_bag_copy",
+]
 
 #: Samples per topic encoded at a time by :func:`write_bag` (the topics alternate by block).
 WRITE_BLOCK = 1024
@@ -95,9 +102,7 @@ def read_topics(
                 raise DataError(
                     f"{chunk.file}: chunk at byte {chunk.offset}, topic {topic}: {exc}"
                 ) from exc
-    listed = ", ".join(
-        f"{topic} ({', '.join(sorted(kinds))})" for topic, kinds in sorted(scan.types.items())
-    )
+    listed = scan.listed_topics()
     for topic in required:
         if topic not in scan.types:
             raise DataError(f"{path}: no topic {topic}; the bag has {listed or 'no topics'}")
@@ -162,18 +167,56 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
         warnings.warn(str(truncation), TruncatedInputWarning, stacklevel=2)
     use_ref = ref_topic is not None and ref_topic in found
     order = [tc1_topic, tc2_topic, *([ref_topic] if use_ref and ref_topic else [])]
+    for topic in dict.fromkeys(order):
+        if not len(found[topic]):
+            raise DataError(f"{path}: topic {topic} has no messages; the bag has {listed}")
+    return paired_record(path, order, found, files, truncated=truncation is not None)
+
+
+def paired_record(
+    path: Path,
+    order: Sequence[str],
+    found: Mapping[str, TemperatureBatch],
+    files: tuple[Path, ...],
+    *,
+    truncated: bool = False,
+) -> Record:
+    """The record of the samples decoded from a bag (all of it, or a stretch of it).
+
+    Each topic's samples are sorted by stamp (log order need not be stamp order), the topics
+    paired by identical stamps and the samples screened and checked uniform
+    (:func:`~tcomp_core.io.record.validated_record`): what :func:`read_bag` does with the whole
+    bag and the windows of ``tcomp diagnose --window-s`` with each stretch.
+
+    Parameters
+    ----------
+    path : Path
+        The bag, for messages.
+    order : sequence of str
+        The tc1 and tc2 topics and, when read, the reference's.
+    found : mapping of topic to TemperatureBatch
+        The decoded samples of each topic of ``order``, none empty.
+    files : tuple of Path
+        The bag's MCAP files (the record's origin).
+    truncated : bool
+        The bag ends early: samples after the last stamp every topic reached are dropped.
+
+    Raises
+    ------
+    DataError
+        As :func:`read_bag`: unpaired stamps, stamps not uniform, readings that cannot be
+        left out.
+    """
     stamps: dict[str, NDArray[np.int64]] = {}
     temperatures: dict[str, NDArray[np.float64]] = {}
     for topic in dict.fromkeys(order):
         batch = found[topic]
-        if not len(batch):
-            raise DataError(f"{path}: topic {topic} has no messages; the bag has {listed}")
         sort = np.argsort(batch.stamps_ns, kind="stable")  # log order need not be stamp order
         stamps[topic], temperatures[topic] = (
             batch.stamps_ns[sort],
             batch.temperature[sort],
         )
-    if truncation is not None:  # a cut-off end: drop what not every topic reached
+    if truncated:  # a cut-off end: drop what not every topic reached
         last = min(int(topic_stamps[-1]) for topic_stamps in stamps.values())
         for topic, topic_stamps in stamps.items():
             keep = int(np.searchsorted(topic_stamps, last, side="right"))
@@ -181,6 +224,7 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
                 topic_stamps[:keep],
                 temperatures[topic][:keep],
             )
+    tc1_topic, tc2_topic = order[0], order[1]
     for topic in order[1:]:
         _check_paired(path, tc1_topic, stamps[tc1_topic], topic, stamps[topic])
     stamps_ns = stamps[tc1_topic]
@@ -189,7 +233,7 @@ def read_bag(path: str | Path, *, topics: Sequence[str | None] = DEFAULT_TOPICS)
         stamps_to_seconds(stamps_ns),
         temperatures[tc1_topic],
         temperatures[tc2_topic],
-        temperatures[order[2]] if use_ref else None,
+        temperatures[order[2]] if len(order) > 2 else None,
         time_name=f"header.stamp of {tc1_topic}",
         names=(f"topic {tc1_topic}", f"topic {tc2_topic}"),
         where=lambda index: f"stamp {format_stamp(int(stamps_ns[index]))}",

@@ -8,9 +8,10 @@ column and the text.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ from .outputs import atomic_output
 from .paths import check_regular_file
 from .record import DEFAULT_COLUMNS, Record, check_names, validated_record
 
-__all__ = ["read_csv", "write_csv"]
+__all__ = ["CSV_CHUNK_ROWS", "CsvChunks", "read_csv", "write_csv"]
 
 
 def _looks_numeric(text: str) -> bool:
@@ -32,6 +33,10 @@ def _looks_numeric(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+#: Rows of a CSV file parsed at a time by :class:`CsvChunks`.
+CSV_CHUNK_ROWS = 100_000
 
 
 def read_csv(
@@ -79,104 +84,189 @@ def read_csv(
         Readings not finite or outside the physical range, or repeated times, left out
         (:mod:`tcomp_core.io.screening`).
     """
-    path = Path(path)
-    tc1_name, tc2_name, ref_name = check_names(columns, DEFAULT_COLUMNS, "columns")
-    try:
-        if path.exists():  # a FIFO or device would block or never end
-            check_regular_file(path)
-        handle = path.open(newline="", encoding="utf-8-sig")
-    except OSError as exc:
-        raise DataError(f"{path}: cannot open CSV file: {exc.strerror}") from exc
-    try:
-        with handle:
-            return _parse_csv(
-                path, csv.reader(handle), tc1_name, tc2_name, ref_name, screen, uniform
-            )
-    except UnicodeDecodeError as exc:
-        raise DataError(
-            f"{path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})"
-        ) from exc
-    except csv.Error as exc:
-        raise DataError(f"{path}: malformed CSV: {exc}") from exc
+    chunks = CsvChunks(path, columns=columns)
+    parts = [arrays for _, arrays in chunks]
+    whole = [np.concatenate([part[k] for part in parts]) for k in range(len(chunks.wanted))]
+    return chunks.record(0, whole, screen=screen, uniform=uniform)
 
 
-def _parse_csv(
-    path: Path,
-    reader: Any,  # the iterator csv.reader returns (its class is not public)
-    tc1_name: str,
-    tc2_name: str,
-    ref_name: str | None,
-    screen: bool,
-    uniform: bool,
-) -> Record:
-    header = next(reader, None)
-    if header is None or not any(cell.strip() for cell in header):
-        raise DataError(f"{path}: empty file, expected a header time,tc1,tc2[,ref]")
-    names = [cell.strip() for cell in header]
-    if all(_looks_numeric(name) for name in names):
-        raise DataError(
-            f"{path}: no header: row 1 holds numbers ({','.join(names)}); expected a header "
-            "time,tc1,tc2[,ref]"
-        )
-    wanted = ["time", tc1_name, tc2_name]
-    # The default reference column is optional; any other one named must exist (checked below).
-    if ref_name is not None and (ref_name in names or ref_name != DEFAULT_COLUMNS[2]):
-        wanted.append(ref_name)
-    use_ref = len(wanted) == 4
-    for name in dict.fromkeys(wanted):
-        count = names.count(name)
-        if count == 0:
+class CsvChunks:
+    """A CSV record's columns parsed :data:`CSV_CHUNK_ROWS` rows at a time, in bounded memory.
+
+    Creating it opens the file and checks the header; iterating parses the rows (each
+    checked as :func:`read_csv` says) and yields ``(first, arrays)``: the index of the chunk's
+    first sample (sample k is on row k + 2 of the file) and ``time``, tc1, tc2 (and the
+    reference when read) as float64 arrays of shape (n,). :meth:`record` builds the
+    :class:`Record` of consecutive rows as :func:`read_csv` builds the whole file's.
+
+    Parameters
+    ----------
+    path : str or Path
+    columns : (tc1, tc2[, ref or None])
+        As :func:`read_csv`.
+    rows : int
+        Rows per chunk.
+
+    Attributes
+    ----------
+    wanted : list of str
+        The columns read: ``time``, tc1, tc2 and the reference when read.
+    source : str
+        The file and the columns, for messages.
+    bytes_total, bytes_read : int
+        The file's size and how far the parsing has read it.
+
+    Raises
+    ------
+    DataError
+        As :func:`read_csv` (the header's errors on creation, the rows' while iterating).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        columns: Sequence[str | None] = DEFAULT_COLUMNS,
+        rows: int = CSV_CHUNK_ROWS,
+    ) -> None:
+        self.path = Path(path)
+        self.rows = rows
+        self.names = check_names(columns, DEFAULT_COLUMNS, "columns")
+        with self._reading() as (_, reader):
+            self.header, self.wanted = self._header(reader)
+        self.indices = [self.header.index(name) for name in self.wanted]
+        self.source = f"{self.path} (columns {', '.join(self.wanted)})"
+        self.bytes_total = self.path.stat().st_size
+        self.bytes_read = 0
+
+    @contextlib.contextmanager
+    def _reading(self) -> Iterator[tuple[Any, Any]]:
+        """The open file and its ``csv.reader``; decoding and CSV errors as DataError."""
+        try:
+            if self.path.exists():  # a FIFO or device would block or never end
+                check_regular_file(self.path)
+            handle = self.path.open(newline="", encoding="utf-8-sig")
+        except OSError as exc:
+            raise DataError(f"{self.path}: cannot open CSV file: {exc.strerror}") from exc
+        try:
+            with handle:
+                yield handle, csv.reader(handle)
+        except UnicodeDecodeError as exc:
             raise DataError(
-                f"{path}: no column {name!r}; the header has columns {', '.join(map(repr, names))}"
-            )
-        if count > 1:
-            raise DataError(f"{path}: column {name!r} appears {count} times in the header")
-    indices = [names.index(name) for name in wanted]
-    values: list[list[float]] = [[] for _ in wanted]
-    blank_row = 0
-    for row in reader:
-        row_number = reader.line_num
-        if not any(cell.strip() for cell in row):
-            blank_row = blank_row or row_number
-            continue
-        if blank_row:
+                f"{self.path}: not a UTF-8 text file ({exc.reason} at byte {exc.start})"
+            ) from exc
+        except csv.Error as exc:
+            raise DataError(f"{self.path}: malformed CSV: {exc}") from exc
+
+    def _header(self, reader: Any) -> tuple[list[str], list[str]]:
+        """The header's names and the columns to read, checked."""
+        path = self.path
+        tc1_name, tc2_name, ref_name = self.names
+        header = next(reader, None)
+        if header is None or not any(cell.strip() for cell in header):
+            raise DataError(f"{path}: empty file, expected a header time,tc1,tc2[,ref]")
+        names = [cell.strip() for cell in header]
+        if all(_looks_numeric(name) for name in names):
             raise DataError(
-                f"{path}: row {blank_row} is blank but data follow on row {row_number}; "
-                "remove the blank line (rows are never skipped)"
+                f"{path}: no header: row 1 holds numbers ({','.join(names)}); expected a header "
+                "time,tc1,tc2[,ref]"
             )
-        if len(row) != len(names):
-            raise DataError(
-                f"{path}: row {row_number} has {len(row)} fields, the header {len(names)}"
-            )
-        for column, index in enumerate(indices):
-            text = row[index].strip()
-            try:
-                number = float(text)
-            except ValueError:
+        wanted = ["time", tc1_name, tc2_name]
+        # The default reference column is optional; any other one named must exist.
+        if ref_name is not None and (ref_name in names or ref_name != DEFAULT_COLUMNS[2]):
+            wanted.append(ref_name)
+        for name in dict.fromkeys(wanted):
+            count = names.count(name)
+            if count == 0:
                 raise DataError(
-                    f"{path}: row {row_number}, column {wanted[column]!r}: {text!r} is not "
-                    "a number"
-                ) from None
-            if column == 0 and not math.isfinite(number):
-                raise DataError(f"{path}: row {row_number}, column 'time': {text!r} is not finite")
-            values[column].append(number)
-    if not values[0]:
-        raise DataError(f"{path}: header only, no samples")
-    arrays = [np.asarray(column, dtype=np.float64) for column in values]
-    source = f"{path} (columns {', '.join(wanted)})"
-    return validated_record(
-        source,
-        arrays[0],
-        arrays[1],
-        arrays[2],
-        arrays[3] if use_ref else None,
-        time_name="column 'time'",
-        names=(f"column {tc1_name!r}", f"column {tc2_name!r}"),
-        where=lambda index: f"row {index + 2}",
-        index_hint=" (sample k is on row k + 2 of the file)",
-        screen=screen,
-        uniform=uniform,
-    )
+                    f"{path}: no column {name!r}; the header has columns "
+                    f"{', '.join(map(repr, names))}"
+                )
+            if count > 1:
+                raise DataError(f"{path}: column {name!r} appears {count} times in the header")
+        return names, wanted
+
+    def __iter__(self) -> Iterator[tuple[int, list[NDArray[np.float64]]]]:
+        with self._reading() as (handle, reader):
+            next(reader, None)  # the header, checked on creation
+            yield from self._chunks(handle, reader)
+
+    def _chunks(self, handle: Any, reader: Any) -> Iterator[tuple[int, list[NDArray[np.float64]]]]:
+        path, wanted, indices = self.path, self.wanted, self.indices
+        values: list[list[float]] = [[] for _ in wanted]
+        first = 0
+        blank_row = 0
+        for row in reader:
+            row_number = reader.line_num
+            if not any(cell.strip() for cell in row):
+                blank_row = blank_row or row_number
+                continue
+            if blank_row:
+                raise DataError(
+                    f"{path}: row {blank_row} is blank but data follow on row {row_number}; "
+                    "remove the blank line (rows are never skipped)"
+                )
+            if len(row) != len(self.header):
+                raise DataError(
+                    f"{path}: row {row_number} has {len(row)} fields, the header "
+                    f"{len(self.header)}"
+                )
+            for column, index in enumerate(indices):
+                text = row[index].strip()
+                try:
+                    number = float(text)
+                except ValueError:
+                    raise DataError(
+                        f"{path}: row {row_number}, column {wanted[column]!r}: {text!r} is not "
+                        "a number"
+                    ) from None
+                if column == 0 and not math.isfinite(number):
+                    raise DataError(
+                        f"{path}: row {row_number}, column 'time': {text!r} is not finite"
+                    )
+                values[column].append(number)
+            if len(values[0]) == self.rows:
+                self.bytes_read = handle.buffer.tell()
+                yield first, [np.asarray(column, dtype=np.float64) for column in values]
+                first += len(values[0])
+                values = [[] for _ in wanted]
+        if not first and not values[0]:
+            raise DataError(f"{path}: header only, no samples")
+        self.bytes_read = self.bytes_total
+        if values[0]:
+            yield first, [np.asarray(column, dtype=np.float64) for column in values]
+
+    def record(
+        self,
+        first: int,
+        arrays: Sequence[NDArray[np.float64]],
+        *,
+        screen: bool = True,
+        uniform: bool = True,
+    ) -> Record:
+        """The record of consecutive rows from sample ``first`` on, as :func:`read_csv` reads.
+
+        ``arrays`` are ``time``, tc1, tc2 (and the reference) of those rows; the messages
+        number the rows as in the file.
+        """
+        tc1_name, tc2_name = self.wanted[1], self.wanted[2]
+        return validated_record(
+            self.source,
+            arrays[0],
+            arrays[1],
+            arrays[2],
+            arrays[3] if len(self.wanted) == 4 else None,
+            time_name="column 'time'",
+            names=(f"column {tc1_name!r}", f"column {tc2_name!r}"),
+            where=lambda index: f"row {first + index + 2}",
+            index_hint=(
+                " (sample k is on row k + 2 of the file)"
+                if first == 0
+                else f" (sample k is on row k + {first + 2} of the file)"
+            ),
+            screen=screen,
+            uniform=uniform,
+        )
 
 
 def write_csv(

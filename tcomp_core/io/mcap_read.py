@@ -231,6 +231,12 @@ class McapScan:
             if topic not in self.metadata:
                 self.metadata[topic] = _channel_metadata(body, at)
 
+    def listed_topics(self) -> str:
+        """The topics seen so far with their types, for messages ('' when none)."""
+        return ", ".join(
+            f"{topic} ({', '.join(sorted(kinds))})" for topic, kinds in sorted(self.types.items())
+        )
+
     def __iter__(self) -> Iterator[ChunkData]:
         for file in self.files:
             self._schemas, self._channels, self._topics = {}, {}, {}

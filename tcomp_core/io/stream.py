@@ -112,10 +112,7 @@ class BagStream:
         DataError
             Naming the bag, the topic and the topics the bag has.
         """
-        listed = ", ".join(
-            f"{topic} ({', '.join(sorted(kinds))})"
-            for topic, kinds in sorted(self.scan.types.items())
-        )
+        listed = self.scan.listed_topics()
         for role in ("tc1", "tc2"):
             if self.topics[role] not in self.scan.types:
                 raise DataError(
