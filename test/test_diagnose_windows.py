@@ -11,13 +11,23 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
 
 from tcomp_core.cli import main
 from tcomp_core.diagnose.windowed import WindowResult, diagnose_windows, whole_verdict
-from tcomp_core.io import BagStream, read_record, write_bag, write_csv
+from tcomp_core.io import (
+    DEFAULT_TOPICS,
+    TEMPERATURE_TYPE,
+    BagStream,
+    McapBagWriter,
+    encode,
+    read_record,
+    write_bag,
+    write_csv,
+)
 from tcomp_core.io.windows import LATE_S, WindowReader
 from tcomp_core.simulate_effects import simulate_effect
 
@@ -53,6 +63,29 @@ def test_a_bag_is_handed_over_in_windows_holding_a_window_and_a_chunk_at_most(tm
     bound = round(window_s / dt) + round(LATE_S / dt) + chunk
     assert reader.peak_held <= bound, (reader.peak_held, bound)
     assert reader.peak_held < count / 5
+
+
+def test_a_topic_logged_late_still_fills_its_windows(tmp_path):
+    # tc2 is logged half a second after its stamps (log order is not stamp order): each window
+    # waits for it, so no sample is lost and every window pairs.
+    dt, count, lag = 0.001, 30_000, 500
+    _, tc1, tc2 = _sine_series(count, dt, seed=6)
+    stamps = 1_000_000_000 + np.arange(count, dtype=np.int64) * 1_000_000
+    writer = McapBagWriter(tmp_path / "late", compress=True, chunk_bytes=20_000)
+    one, two = (writer.add_channel(t, TEMPERATURE_TYPE) for t in DEFAULT_TOPICS[:2])
+    for start in range(0, count + lag, 100):
+        now = slice(min(start, count), min(start + 100, count))
+        late = slice(max(start - lag, 0), max(min(start + 100 - lag, count), 0))
+        writer.write_rows(one, stamps[now], encode(stamps[now], tc1[now], 0.0, "tc"))
+        logged = stamps[late] + lag * 1_000_000
+        writer.write_rows(two, logged, encode(stamps[late], tc2[late], 0.0, "tc"))
+    bag = writer.close()
+    reader = WindowReader(bag, 5.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        windows = list(reader)
+    assert len(windows) == 6 and reader.late == 0
+    assert all(w.record is not None and w.record.time.size == 5_000 for w in windows)
 
 
 def test_a_csv_file_is_parsed_in_row_chunks_and_handed_over_in_windows(tmp_path):

@@ -17,7 +17,8 @@ Modules, one job each: :mod:`.record` (record type, names, stamps), :mod:`.paths
 a bag's files, clearing an output), :mod:`.csvfile`, :mod:`.temperature` (the CDR codec),
 :mod:`.mcap_records` (records, read-ahead thread, decompression, CRC), :mod:`.mcap_read`
 (chunk-wise scanner), :mod:`.mcap_write` (chunk writer), :mod:`.bag`,
-:mod:`.stream` (chunk-by-chunk input of ``tcomp process``), :mod:`.screening` (invalid
+:mod:`.stream` (chunk-by-chunk input of ``tcomp process``), :mod:`.windows` (a long record
+in windows streamed from its file, for ``tcomp diagnose``), :mod:`.screening` (invalid
 readings and repeated times left out, the one boundary of both readers), :mod:`.qos`,
 :mod:`.dispatch`, :mod:`.diagnostics` (the ``DiagnosticArray`` encoder of the bags
 ``tcomp process`` writes).

@@ -34,7 +34,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DataError, TruncatedInputWarning
+from ..errors import DataError, InvalidReadingsWarning, TruncatedInputWarning
 from .bag import paired_record
 from .csvfile import CSV_CHUNK_ROWS, CsvChunks
 from .paths import check_readable_format, is_csv
@@ -267,13 +267,14 @@ class WindowReader:
         if self._bag is not None:
             self._bag.check_topics()
             truncation = self._bag.truncation
-            if self._ref_required and self._bag.topics["ref"] not in self._bag.scan.types:
-                raise DataError(f"{self.path}: no topic {self._bag.topics['ref']}")
-        if origin is None:
-            raise DataError(f"{self.path}: no samples of tc1")
+            ref = self._bag.topics.get("ref")
+            if self._ref_required and ref not in self._bag.scan.types:
+                listed = self._bag.scan.listed_topics() or "no topics"
+                raise DataError(f"{self.path}: no topic {ref}; the bag has {listed}")
         if truncation is not None:
             warnings.warn(str(truncation), TruncatedInputWarning, stacklevel=2)
-        if self.window_s is None or self.whole:
+        # Nothing read (origin None) is refused as the whole file's reader refuses it.
+        if self.window_s is None or self.whole or origin is None:
             self.whole = True
             self.window_s = math.inf
             record = self._record(math.inf, truncated=truncation is not None)
@@ -288,7 +289,7 @@ class WindowReader:
             warnings.warn(
                 f"{self.path}: left out {self.late} sample(s) stamped more than {LATE_S:g} s "
                 "before the newest of every topic, after their window was diagnosed",
-                TruncatedInputWarning,
+                InvalidReadingsWarning,
                 stacklevel=2,
             )
 
