@@ -24,9 +24,10 @@ from numpy.typing import NDArray
 from .diagnose.pipeline import fused_gas
 from .diagnose.residuals import Autocorrelation
 from .diagnose.result import Diagnosis, ModelFit, Suspect
+from .diagnose.windowed import WindowedDiagnosis
 from .plots import zoom_length
 
-__all__ = ["write_report"]
+__all__ = ["write_report", "write_windowed_report"]
 
 #: Resolution of the embedded figures, dots per inch.
 FIGURE_DPI = 90
@@ -426,7 +427,6 @@ def _reconstructions(diagnosis: Diagnosis) -> str:
 
 
 def _html(diagnosis: Diagnosis) -> str:
-    title = escape(f"tcomp diagnosis: {diagnosis.source}")
     body = "\n".join(
         (
             _summary(diagnosis),
@@ -439,11 +439,149 @@ def _html(diagnosis: Diagnosis) -> str:
             _section("Notes", _list(diagnosis.notes)),
         )
     )
+    return _page(f"tcomp diagnosis: {diagnosis.source}", body)
+
+
+def _page(title: str, body: str) -> str:
+    """A self-contained HTML page: the title (escaped here) and the body's sections."""
+    title = escape(title)
     return (
         '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
         f"<title>{title}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
         f"<h1>{title}</h1>\n{body}\n</body>\n</html>\n"
     )
+
+
+def _windows_figure(result: WindowedDiagnosis) -> Figure:
+    """τ1 and τ2 per window (95 % intervals, the whole record's medians) and the error."""
+    rows = [row for row in result.windows if row.verdict is not None]
+    figure = Figure(figsize=(9.0, 7.0), layout="constrained")
+    tau1_axes, tau2_axes, errors = figure.subplots(3, 1, sharex=True)
+    middle = np.array([row.start_s + 0.5 * row.length_s for row in rows])
+    whole = result.whole
+    for axes, name, color, median in (
+        (tau1_axes, "tau1", "C0", whole.tau1),
+        (tau2_axes, "tau2", "C1", whole.tau2),
+    ):
+        values = np.array([getattr(row, name) for row in rows])
+        bounds = [
+            getattr(row, f"{name}_95") or (v, v) for row, v in zip(rows, values, strict=True)
+        ]
+        spread = np.abs(np.array(bounds).T - values) if rows else None
+        axes.errorbar(
+            middle,
+            values,
+            yerr=spread,
+            fmt="o",
+            color=color,
+            capsize=3,
+            label="window (95 % interval)",
+        )
+        axes.axhline(median, color="0.3", linestyle="--", label=f"median {median:.4g} s")
+        axes.set_ylabel(f"{name}, s")
+        axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    errors.plot(middle, [row.error_pct for row in rows], "o", color="C2")
+    for row, x in zip(rows, middle, strict=True):
+        errors.annotate(
+            str(row.verdict),
+            (x, row.error_pct),
+            fontsize=8,
+            textcoords="offset points",
+            xytext=(0, 4),
+            ha="center",
+        )
+    for axes in (tau1_axes, tau2_axes, errors):
+        for row in result.windows:
+            if row.verdict is None:
+                axes.axvspan(row.start_s, row.start_s + row.length_s, color="0.88")
+    errors.set_ylabel("held-out error, %")
+    errors.set_xlabel("time from the record's start, s (grey: windows not diagnosed)")
+    return figure
+
+
+def _windowed_html(result: WindowedDiagnosis) -> str:
+    whole = result.whole
+    summary = (
+        f'<p class="verdict">verdict: {escape(whole.verdict)} (the verdict of {whole.agree} of '
+        f"{whole.voting} windows)</p><p>tau1 = {_num(whole.tau1, '.5g')} s, tau2 = "
+        f"{_num(whole.tau2, '.5g')} s: medians over those windows (ranges "
+        f"{_num(whole.tau1_range[0])} .. {_num(whole.tau1_range[1])} s and "
+        f"{_num(whole.tau2_range[0])} .. {_num(whole.tau2_range[1])} s). Windows of "
+        f"{_num(result.window_s, 'g')} s, each diagnosed on its own; the verdict is the one "
+        "most windows give (a last window shorter than half a window does not vote, a found "
+        "effect goes first on a tie).</p>"
+    )
+
+    def interval(value: tuple[float, float] | None) -> str:
+        return "" if value is None else f"{_num(value[0])} .. {_num(value[1])}"
+
+    table = _table(
+        [
+            "window",
+            "start s",
+            "samples",
+            "tau1 s",
+            "95 %",
+            "tau2 s",
+            "95 %",
+            "error %",
+            "verdict",
+            "effects or problem",
+        ],
+        (
+            [
+                row.index + 1,
+                float(row.start_s),
+                row.samples,
+                float(row.tau1),
+                interval(row.tau1_95),
+                float(row.tau2),
+                interval(row.tau2_95),
+                float(row.error_pct),
+                row.verdict or "not diagnosed",
+                row.problem or ", ".join(row.effects) or "-",
+            ]
+            for row in result.windows
+        ),
+    )
+    notes = [f"window {row.index + 1}: {note}" for row in result.windows for note in row.notes]
+    body = "\n".join(
+        (
+            _section("Summary", summary),
+            _section(
+                "Windows", _image(_windows_figure(result), "tau and error per window"), table
+            ),
+            _section("Notes", _list(notes)),
+        )
+    )
+    return _page(f"tcomp diagnosis in windows: {result.source}", body)
+
+
+def _write_page(page: str, directory: str | Path, overwrite: bool, inputs: Iterable[Path]) -> Path:
+    """Write ``directory/index.html`` whole under a temporary name, then rename it."""
+    from .io import atomic_output
+
+    target = Path(directory)
+    with atomic_output(target, overwrite, inputs, directory=True) as temporary:
+        temporary.mkdir()
+        (temporary / "index.html").write_text(page, encoding="utf-8")
+    return target / "index.html"
+
+
+def write_windowed_report(
+    result: WindowedDiagnosis,
+    directory: str | Path,
+    *,
+    overwrite: bool = False,
+    inputs: Iterable[Path] = (),
+) -> Path:
+    """Write a diagnosis in windows as one self-contained ``index.html``.
+
+    Sections: the whole record's verdict and τ, a figure of τ1 and τ2 per window (95 %
+    intervals, the medians) and of the held-out error with each window's verdict, the
+    windows' table, their notes. Parameters and return as :func:`write_report`.
+    """
+    return _write_page(_windowed_html(result), directory, overwrite, inputs)
 
 
 def write_report(
@@ -473,11 +611,4 @@ def write_report(
         The path of ``index.html``. Sections: summary, model vs measurement, residuals, where
         it fails, suspects, error staircase, reconstructions, notes.
     """
-    from .io import atomic_output
-
-    target = Path(directory)
-    page = _html(diagnosis)
-    with atomic_output(target, overwrite, inputs, directory=True) as temporary:
-        temporary.mkdir()
-        (temporary / "index.html").write_text(page, encoding="utf-8")
-    return target / "index.html"
+    return _write_page(_html(diagnosis), directory, overwrite, inputs)

@@ -78,8 +78,7 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     ValueError
-        If ``--max-effects`` is negative, or ``--report`` is asked of a record diagnosed in
-        windows.
+        If ``--max-effects`` is negative.
     """
     import itertools
 
@@ -114,11 +113,6 @@ def _in_windows(args: argparse.Namespace, reader: WindowReader, windows: Iterabl
     from ..io.windows import WHOLE_SAMPLES
     from ..process.progress import progress_bar
 
-    if args.report:
-        raise ValueError(
-            f"{args.report}: --report draws one record; a record diagnosed in windows is "
-            "written by --json (or use --whole)"
-        )
     if reader.automatic:
         print(
             f"{args.data}: longer than {WHOLE_SAMPLES} samples: diagnosed in windows of "

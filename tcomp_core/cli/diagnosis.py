@@ -111,12 +111,19 @@ def _write_json(document: dict[str, Any], args: argparse.Namespace) -> None:
 
 
 def write_windowed(result: WindowedDiagnosis, args: argparse.Namespace) -> int:
-    """Print a diagnosis in windows and write ``--json`` if given; returns exit status 0."""
+    """Print a diagnosis in windows, write ``--json`` and ``--report`` if given; returns 0."""
     from ..diagnose.windowed import windowed_to_dict
 
     print(format_windowed(result))
     if args.json:
         _write_json(windowed_to_dict(result), args)
+    if args.report:
+        from ..report import write_windowed_report  # matplotlib only when asked for
+
+        report = write_windowed_report(
+            result, args.report, overwrite=args.force, inputs=[args.data]
+        )
+        print(f"report: {report}")
     return 0
 
 
