@@ -168,6 +168,9 @@ class WindowReader:
         The share of the input read so far, 0..1.
     samples_read : int
         tc1 samples (CSV rows) read so far.
+    late : int
+        A bag's samples left out because they came after their window was handed over
+        (stamped more than :data:`LATE_S` before the newest of every topic; warned at the end).
 
     Raises
     ------
