@@ -399,9 +399,9 @@ def _refusal(
         listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
         return f"not pinned down by the data ({listed}): first order is what they identify"
     undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
-    loose = [check for check in found.checks if check.effect in undone and check.free]
-    if loose:
-        listed = "; ".join(f"{check.name}: {check.loose}" for check in loose)
+    free = [check for check in found.checks if check.effect in undone and check.free]
+    if free:
+        listed = "; ".join(f"{check.name}: {check.loose}" for check in free)
         return f"not pinned down by the data ({listed}): first order is what they identify"
     if found.extrapolates:
         return (

@@ -374,15 +374,17 @@ def identify(
     change_c = _rms(change, keep)
     evidence_c = min(_rms(values, keep) for values in disagreements)
     band_c, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free)
-    specs = {spec.name: spec for effect in model.instances for spec in effect.specs(context)}
-    effect_of = {
-        spec.name: effect.name for effect in model.instances for spec in effect.specs(context)
+    owned = {
+        spec.name: (effect.name, spec)
+        for effect in model.instances
+        for spec in effect.specs(context)
     }
     intervals = covariance.intervals()
     checks = []
     for name in covariance.names:
-        if name not in effect_of:
+        if name not in owned:
             continue
+        effect, spec = owned[name]
         low, high = intervals[name]
         with_tau = [abs(covariance.correlation(name, f"tau{i}")) for i in (1, 2)]
         finite = [value for value in with_tau if math.isfinite(value)]
@@ -391,10 +393,10 @@ def identify(
             reason = "the data do not determine it (singular fit)"
         elif name in covariance.at_bound:
             reason = "on a bound of its physical range"
-        loose, share = ("", math.nan) if reason else _looseness(specs[name], low, high)
+        loose, share = ("", math.nan) if reason else _looseness(spec, low, high)
         checks.append(
             ParameterCheck(
-                effect=effect_of[name],
+                effect=effect,
                 name=name,
                 value=float(model.params[name]),
                 low=low,
