@@ -18,6 +18,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 import bench_compensate
 import campaign_draws
 
+from tcomp_core import estimate
+
 pytestmark = pytest.mark.slow
 
 
@@ -56,3 +58,15 @@ def test_materially_worse_needs_both_the_ratio_and_the_points():
     assert not campaign_draws.materially_worse(1.0, 1.09)  # within 1.1x
     assert not campaign_draws.materially_worse(0.5, 0.59)  # 1.18x but 0.09 point
     assert campaign_draws.materially_worse(1.0, float("nan"))
+
+
+def test_a_record_whose_flow_speed_drifts_gets_a_first_order_estimate():
+    # Draw 357: a flow speed drifting through a 10 kHz step/ramp record, so τ drifts too. The
+    # first-order search crosses a long flat valley (about 670 evaluations at φ = 1, more than
+    # least_squares' default budget of 300); it was refused as "did not converge", leaving the
+    # default path with no gas at all.
+    record, truth = campaign_draws.simulate(campaign_draws.draw(357))
+    assert "velocity" in campaign_draws.draw(357).effects
+    result = estimate(record.tc1, record.tc2, record.dt, "ml-eiv", phi=1.0)
+    assert result.params["evaluations"] > 300
+    assert 0.0 < result.tau1 < result.tau2 < 10 * truth["tau2"]

@@ -93,6 +93,10 @@ _MAD_TO_SIGMA = 1.482602218505602
 #: The search's range of the gain deviation h = g - 1 between the sensors.
 _GAIN_RANGE = 0.5
 _TAU_HIGH_RECORDS = 10.0
+#: Most evaluations of the residual one search may take (least_squares' default is 300 for three
+#: parameters). A record the first-order model fits badly (a flow speed drifting through the
+#: record: τ itself drifts) has a long flat valley that the search crosses in 600-700.
+_MAX_EVALUATIONS = 1500
 
 
 def phi_from_data(
@@ -371,7 +375,13 @@ def _search(problem: _CrossRelation, initial: NDArray[np.float64]) -> OptimizeRe
     """Minimise the projected residual's squared norm from ``initial`` within the bounds."""
     low, high = problem.bounds()
     return least_squares(
-        problem.projected, initial, jac="2-point", bounds=(low, high), xtol=1e-12, ftol=1e-12
+        problem.projected,
+        initial,
+        jac="2-point",
+        bounds=(low, high),
+        xtol=1e-12,
+        ftol=1e-12,
+        max_nfev=_MAX_EVALUATIONS,
     )
 
 
