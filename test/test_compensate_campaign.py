@@ -65,8 +65,9 @@ def test_a_record_whose_flow_speed_drifts_gets_a_first_order_estimate():
     # first-order search crosses a long flat valley (about 670 evaluations at φ = 1, more than
     # least_squares' default budget of 300); it was refused as "did not converge", leaving the
     # default path with no gas at all.
-    record, truth = campaign_draws.simulate(campaign_draws.draw(357))
-    assert "velocity" in campaign_draws.draw(357).effects
+    item = campaign_draws.draw(357)
+    assert "velocity" in item.effects
+    record, truth = campaign_draws.simulate(item)
     result = estimate(record.tc1, record.tc2, record.dt, "ml-eiv", phi=1.0)
     assert result.params["evaluations"] > 300
     assert 0.0 < result.tau1 < result.tau2 < 10 * truth["tau2"]
