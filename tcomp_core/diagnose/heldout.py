@@ -29,6 +29,9 @@ from scipy import signal
 from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
+from ..effects.model import LEVEL
+from ..effects.calibration import CLASS2_MARGIN
+from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from ..effects.chain import SHIFT_HALF_TAPS
 from .identification import held_edges, identify
 from .prepare import PreparedData
@@ -141,10 +144,21 @@ class Evaluator:
         return model.fit(*self._fit_inputs, self.data.training_rows, hold)
 
     def _free_run(self, model: Model) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The slow sensor's readings and its free-run simulation from the fast one."""
+        """The slow sensor's readings and its free-run simulation from the fast one.
+
+        The base model's level difference between the sensors (:attr:`Model.has_level`) is
+        simulated up to what two sensors of IEC 60584 class 2 may differ by, with the
+        calibration effect's margin: within that the difference is the sensors' ordinary
+        state, beyond it a calibration for the diagnosis to find.
+        """
         readings = self.readings
         fast = 3 - self.slow
         measured = readings[self.slow - 1]
+        if model.has_level and LEVEL in model.params:
+            level_c = self.context.level_mean_c
+            tolerance = CLASS2_MARGIN * (CLASS2_OFFSET_C + CLASS2_GAIN * abs(level_c))
+            level = float(np.clip(model.params[LEVEL], -tolerance, tolerance))
+            model = Model(model.effects, {**model.params, LEVEL: level})
         predicted = model.simulate(readings[fast - 1], fast, float(measured[0]), self.context)
         return measured, predicted
 

@@ -164,6 +164,11 @@ class Effect:
     #: How far τ may fall below the first-order estimate when that differs (a factor; None:
     #: :attr:`max_tau_factor`), for an effect that biases the first-order τ one way only.
     max_tau_fall: ClassVar[float | None] = None
+    #: Whether the effect fits the level difference between the two sensors itself (a
+    #: calibration's offset). Without such an effect the model fits it as the base parameter
+    #: ``level_c`` (:attr:`tcomp_core.effects.Model.has_level`): two sensors of one class
+    #: differ in level by up to their tolerance, which no dynamics explains.
+    fits_level: ClassVar[bool] = False
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         """Whether a fit of this size is a finding rather than the sensors' ordinary state.

@@ -49,6 +49,7 @@ class Calibration(Effect):
 
     name = "calibration"
     max_tau_factor = math.inf
+    fits_level = True
     summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:

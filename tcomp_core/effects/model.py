@@ -31,7 +31,11 @@ from .base import KELVIN, Effect, FitContext, ParamSpec
 from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
 from .registry import EFFECTS, check_effect_names
 
-__all__ = ["LeastSquaresProblem", "Model", "make_context"]
+__all__ = ["LEVEL", "LeastSquaresProblem", "Model", "make_context"]
+
+#: The base model's level difference between the sensors: tc2 reads T + level_c where tc1
+#: reads T, degrees C (see :attr:`Model.has_level`).
+LEVEL = "level_c"
 
 #: Evaluations allowed to each start of a multi-start search before the best is polished.
 _SCOUT_EVALUATIONS = 30
@@ -172,7 +176,11 @@ class LeastSquaresProblem:
         """Parameter dict → search vector x (the inverse of ``unpack``), shape (P,)."""
         return np.array(
             [
-                math.log(params[s.name]) if s.name.startswith("tau") else params[s.name]
+                math.log(params[s.name])
+                if s.name.startswith("tau")
+                else params.get(s.name, 0.0)
+                if s.name == LEVEL
+                else params[s.name]
                 for s in self.specs
             ]
         )
@@ -341,8 +349,21 @@ class Model:
                 return value
         return 1.0
 
+    @property
+    def has_level(self) -> bool:
+        """Whether the model fits the sensors' level difference ``level_c`` as a base parameter.
+
+        True unless an effect fits the level itself (:attr:`~.base.Effect.fits_level`, a
+        calibration's offset). Two sensors of one tolerance class differ in level by up to a
+        few degrees, which no dynamics explains: left out, it bends τ on a drifting record (as
+        ml-eiv's offset b would, :mod:`tcomp_core.estimators.mleiv`) and is taken up by
+        whatever effect can shift a level (conduction, radiation).
+        """
+        return not any(effect.fits_level for effect in self.instances)
+
     def specs(self, context: FitContext) -> list[ParamSpec]:
-        """Every searched parameter: τ1, τ2 then each effect's."""
+        """Every searched parameter: τ1, τ2, the level difference (:attr:`has_level`), the
+        effects' own."""
         upper = max(context.duration_s, 100.0 * context.dt)
         taus = [
             ParamSpec(
@@ -354,6 +375,17 @@ class Model:
             )
             for i in (1, 2)
         ]
+        if self.has_level:
+            span = 0.2 * abs(context.level_mean_c) + 10.0 * context.level_std_c + 10.0
+            taus.append(
+                ParamSpec(
+                    name=LEVEL,
+                    unit="degC",
+                    lower=-span,
+                    upper=span,
+                    description="level of tc2 relative to tc1 (the sensors' calibrations)",
+                )
+            )
         return taus + [spec for effect in self.instances for spec in effect.specs(context)]
 
     def n_params(self, context: FitContext) -> int:
@@ -369,6 +401,8 @@ class Model:
         chains = []
         for sensor in (1, 2):
             chain = SensorChain(tau=params[f"tau{sensor}"])
+            if sensor == 2 and self.has_level and params.get(LEVEL, 0.0):
+                chain = replace(chain, offset=params[LEVEL])
             for effect in self.instances:
                 additive = effect.additive(sensor, params, context)
                 if additive is not None:
@@ -671,8 +705,11 @@ class Model:
             if any(spec.name not in self.params for spec in effect.specs(context))
         ]
         starts = []
+        level = float(np.mean(tc2) - np.mean(tc1)) if tc1.size else 0.0
         for combination in itertools.product(*options) if options else [()]:
             values = dict(self.params)
+            if self.has_level:
+                values.setdefault(LEVEL, level if math.isfinite(level) else 0.0)
             for part in combination:
                 values.update(part)
             x = problem.pack(values)
