@@ -197,6 +197,9 @@ class OutputModel:
     ) -> tuple[SensorChain, SensorChain]:
         """Both sensors' chains with the applied effects, over ``time`` (s, caller's base).
 
+        Each sensor stays on its own scale (the fit's level difference ``level_c`` is not
+        applied: :meth:`~tcomp_core.effects.Model.without_level`).
+
         Raises
         ------
         ValueError
@@ -212,7 +215,7 @@ class OutputModel:
                     f"(0 to {span:.6g} s from its start; these samples span "
                     f"{relative[0]:.6g} to {relative[-1]:.6g} s)"
                 )
-        return Model(applied, self.params).chains(self.context_for(time, dt))
+        return Model(applied, self.params).without_level().chains(self.context_for(time, dt))
 
     @property
     def keeps_first_order_level(self) -> bool:

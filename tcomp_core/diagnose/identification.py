@@ -255,8 +255,9 @@ def _gas_pair(
     readings: tuple[NDArray[np.float64], NDArray[np.float64]],
     context: FitContext,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Each sensor's reconstruction under ``model``, edges held, shape (N - 1,) each."""
-    gas1, gas2 = model.reconstruct(*readings, context)
+    """Each sensor's reconstruction under ``model`` (each on its own scale, as an output is:
+    :meth:`Model.without_level`), edges held, shape (N - 1,) each."""
+    gas1, gas2 = model.without_level().reconstruct(*readings, context)
     return held_edges(gas1), held_edges(gas2)
 
 

@@ -324,6 +324,15 @@ class Model:
                 return reason
         return ""
 
+    def without_level(self) -> Model:
+        """This model with the sensors' level difference left in the readings (``level_c`` 0).
+
+        The fit needs the level difference; a gas temperature does not take it: which sensor's
+        level is right two signals cannot tell, so each sensor's gas stays on its own scale
+        and the reconstruction mixes them as the first-order one does.
+        """
+        return Model(self.effects, {k: v for k, v in self.params.items() if k != LEVEL})
+
     def with_effect(self, name: str) -> Model:
         """A new model with one more effect; the fitted parameters so far are kept."""
         if name in self.effects:
