@@ -88,3 +88,25 @@ def test_a_gain_beyond_class_2_is_said_with_what_to_do(tmp_path, capsys, gain, w
     assert ("beyond IEC 60584 class 2" in err) is warned, err
     if warned:
         assert "differ by +3" in err and "% in gain" in err and "tcomp diagnose" in err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("offset", [2.5, -2.5])
+def test_the_diagnosis_takes_a_class_2_offset_for_the_sensors_ordinary_state(offset):
+    """A level difference within class 2 is fitted by the base model (``level_c``): it bends
+    no τ, is taken up by no effect and does not count in the model error. Without it, the
+    drift's base τ1 was 20 % off and the offset was called an effect."""
+    from tcomp_core.diagnose import diagnose
+    from tcomp_core.io import Record
+
+    pair = _pair("drift", seed=7)
+    record = Record(
+        time=pair.time, tc1=pair.tc1 + offset, tc2=pair.tc2, ref=None, source="drift", dt=pair.dt
+    )
+    found = diagnose(record)
+    assert found.verdict == "none", (found.verdict, found.final.effects)
+    base = found.steps[0]
+    assert base.params["level_c"] == pytest.approx(-offset, abs=0.25)
+    assert base.error_pct < 5.0
+    for name, truth in (("tau1", pair.tau1), ("tau2", pair.tau2)):
+        assert getattr(found.final, name) == pytest.approx(truth, rel=0.03), name

@@ -156,7 +156,7 @@ class Evaluator:
         measured = readings[self.slow - 1]
         if model.has_level and LEVEL in model.params:
             level_c = self.context.level_mean_c
-            tolerance = CLASS2_MARGIN * (CLASS2_OFFSET_C + CLASS2_GAIN * abs(level_c))
+            tolerance = CLASS2_OFFSET_C + CLASS2_GAIN * abs(level_c)
             level = float(np.clip(model.params[LEVEL], -tolerance, tolerance))
             model = Model(model.effects, {**model.params, LEVEL: level})
         predicted = model.simulate(readings[fast - 1], fast, float(measured[0]), self.context)

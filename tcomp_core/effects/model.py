@@ -27,6 +27,7 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from ..errors import EstimationError
+from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .base import KELVIN, Effect, FitContext, ParamSpec
 from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
 from .registry import EFFECTS, check_effect_names
@@ -245,6 +246,17 @@ class _Jacobian:
 
 
 _EPS_SQRT = math.sqrt(np.finfo(float).eps)
+
+
+def _level_prior_sd(context: FitContext) -> float:
+    """Standard deviation of the Gaussian prior on ``level_c``, degrees C.
+
+    Class 2's tolerance between the sensors at the record's level is its 95 % bound. The data
+    fix a level difference far better than that (a constant seen on every sample), so the
+    prior decides only what they cannot: how much of a level difference an effect that also
+    shifts the level (a radiative loss) takes, which is then as much as it can explain.
+    """
+    return (CLASS2_OFFSET_C + CLASS2_GAIN * abs(context.level_mean_c)) / 1.959963984540054
 
 
 @functools.lru_cache(maxsize=16)
@@ -633,15 +645,22 @@ class Model:
             return values
 
         memo = _ChainMemo()
+        level_sd = _level_prior_sd(context) if any(s.name == LEVEL for s in specs) else None
+
+        def penalties(values: Mapping[str, float]) -> list[NDArray[np.float64]]:
+            extra = [effect.penalty(values, n_rows) for effect in self.instances]
+            if level_sd is not None:
+                extra.append(np.array([values[LEVEL] / level_sd]))
+            return extra
 
         def residuals(x: NDArray[np.float64], penalty_only: bool = False) -> NDArray[np.float64]:
             values = unpack(x)
             if penalty_only:
-                penalties = [effect.penalty(values, n_rows) for effect in self.instances]
-                return np.concatenate(penalties) if penalties else np.empty(0)
+                extra = penalties(values)
+                return np.concatenate(extra) if extra else np.empty(0)
             r = self.cross_residual(tc1, tc2, context, values, memo)[rows]
             r = np.where(np.isfinite(r), r, 1e6)
-            extra = [effect.penalty(values, n_rows) for effect in self.instances]
+            extra = penalties(values)
             return np.concatenate([r, *extra]) if extra else r
 
         lower = np.array(
