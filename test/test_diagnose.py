@@ -27,7 +27,6 @@ CASES = [
     ("conduction", "multisine", FAST, 1.0, 1),
     ("conduction", "exhaust", PAPER, 2.0, 2),
     ("radiation", "multisine", PAPER, 1.0, 3),
-    ("radiation", "ramp", FAST, 1.0, 4),
     ("velocity", "multisine", PAPER, 1.0, 5),
     ("velocity", "exhaust", FAST, 2.0, 6),
     ("delay", "multisine", PAPER, 1.0, 7),
@@ -216,10 +215,32 @@ def test_cli_fit_refuses_an_unknown_effect(tmp_path, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.slow
+def test_radiation_on_a_ramp_is_left_only_what_the_sensors_calibration_cannot_explain():
+    # At 680 degC the wires' radiative losses leave the sensors 8.8 degC apart in level, and
+    # class 2 allows 7.6 degC there: the base model fits the level difference (level_c), so
+    # radiation keeps only the 1.2 degC beyond class 2 and the T^4 bend along the ramp. Its
+    # model error is 4x lower (1.08 -> 0.26 %), but at K = 1 % the raw error falls 8.5 %
+    # only (noise floor 2.64 %): too little to be called. (Before level_c the whole level
+    # difference counted for radiation, and every pair's class-2 offset for some effect.)
+    record, sim = _record("radiation", "ramp", FAST, 1.0, 4)
+    found = diagnose(record, max_effects=1)
+    assert found.verdict in ("radiation", "none")
+    assert found.suspects[0].effect in ("radiation", "calibration")
+    assert found.base.params["level_c"] == pytest.approx(
+        float(np.mean(record.tc2 - record.tc1)), abs=1.5
+    )
+    assert found.suspects[0].error_pct < 0.5 * found.base.error_pct
+    # Not called, radiation's shortening of τ (by 1 + ρ, ρ about 5 %) stays in the first order's.
+    assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.08)
+    assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.08)
+
+
 def test_an_effect_is_judged_on_the_blocks_both_models_score():
-    # The base model fits this record badly (a 6 degC offset) with a long τ2, so its start-up
-    # transient covers the first validation block, which the calibration refit does score.
-    # The blocks must still be compared one for one (a count mismatch used to reject it).
+    # The base model fits this record badly (a 4.7 % gain and 6 degC offset beyond class 2):
+    # its start-up transient may cover a validation block that the calibration refit scores
+    # (it did while the base model had no level: τ2 came out long). The blocks must still be
+    # compared one for one (a count mismatch used to reject it).
     record, _ = _bare_record(
         "calibration",
         "multisine",
@@ -232,7 +253,7 @@ def test_an_effect_is_judged_on_the_blocks_both_models_score():
     )
     found = diagnose(record, max_effects=1)
     base_blocks = found.base.block_errors_pct
-    assert np.isnan(base_blocks[0]) and base_blocks.size == found.final.block_errors_pct.size
+    assert base_blocks.size == found.final.block_errors_pct.size
     assert found.verdict == "calibration"
     assert found.base.error_pct >= 2.0 * found.final.error_pct
 

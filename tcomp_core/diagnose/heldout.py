@@ -29,10 +29,9 @@ from scipy import signal
 from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
-from ..effects.model import LEVEL
-from ..effects.calibration import CLASS2_MARGIN
-from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from ..effects.chain import SHIFT_HALF_TAPS
+from ..effects.model import LEVEL
+from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .identification import held_edges, identify
 from .prepare import PreparedData
 from .result import ModelFit
@@ -147,9 +146,9 @@ class Evaluator:
         """The slow sensor's readings and its free-run simulation from the fast one.
 
         The base model's level difference between the sensors (:attr:`Model.has_level`) is
-        simulated up to what two sensors of IEC 60584 class 2 may differ by, with the
-        calibration effect's margin: within that the difference is the sensors' ordinary
-        state, beyond it a calibration for the diagnosis to find.
+        simulated up to what two sensors of IEC 60584 class 2 may differ by: within that the
+        difference is the sensors' ordinary state, beyond it the rest is left for an effect
+        to explain (a calibration, a radiative loss).
         """
         readings = self.readings
         fast = 3 - self.slow

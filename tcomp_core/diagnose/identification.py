@@ -255,8 +255,10 @@ def _gas_pair(
     readings: tuple[NDArray[np.float64], NDArray[np.float64]],
     context: FitContext,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Each sensor's reconstruction under ``model`` (each on its own scale, as an output is:
-    :meth:`Model.without_level`), edges held, shape (N - 1,) each."""
+    """Each sensor's reconstruction under ``model``, edges held, shape (N - 1,) each.
+
+    Each on its own scale, as an output is (:meth:`Model.without_level`).
+    """
     gas1, gas2 = model.without_level().reconstruct(*readings, context)
     return held_edges(gas1), held_edges(gas2)
 

@@ -337,7 +337,7 @@ class Model:
         return ""
 
     def without_level(self) -> Model:
-        """This model with the sensors' level difference left in the readings (``level_c`` 0).
+        """The model with the sensors' level difference left in the readings (``level_c`` 0).
 
         The fit needs the level difference; a gas temperature does not take it: which sensor's
         level is right two signals cannot tell, so each sensor's gas stays on its own scale
@@ -383,8 +383,7 @@ class Model:
         return not any(effect.fits_level for effect in self.instances)
 
     def specs(self, context: FitContext) -> list[ParamSpec]:
-        """Every searched parameter: τ1, τ2, the level difference (:attr:`has_level`), the
-        effects' own."""
+        """Every searched parameter: τ1, τ2, ``level_c`` (:attr:`has_level`), the effects' own."""
         upper = max(context.duration_s, 100.0 * context.dt)
         taus = [
             ParamSpec(
