@@ -226,7 +226,8 @@ def test_radiation_on_a_ramp_is_left_only_what_the_sensors_calibration_cannot_ex
     record, sim = _record("radiation", "ramp", FAST, 1.0, 4)
     found = diagnose(record, max_effects=1)
     assert found.verdict in ("radiation", "none")
-    assert found.suspects[0].effect in ("radiation", "calibration")
+    # What is left is shaped by the level: radiation, a calibration or a property tie for it.
+    assert found.suspects[0].effect in ("radiation", "calibration", "property")
     assert found.base.params["level_c"] == pytest.approx(
         float(np.mean(record.tc2 - record.tc1)), abs=1.5
     )
