@@ -265,7 +265,7 @@ def test_the_rules_say_how_each_effect_is_treated():
         )
 
 
-def _check(name, reason="", loose="", range_share=0.05, effect="delay"):
+def _check(name, reason="", loose="", range_share=0.05, gas_move_c=math.nan, effect="delay"):
     from tcomp_core.diagnose.identification import ParameterCheck
 
     return ParameterCheck(
@@ -279,6 +279,7 @@ def _check(name, reason="", loose="", range_share=0.05, effect="delay"):
         reason=reason,
         loose=loose,
         range_share=range_share,
+        gas_move_c=gas_move_c,
     )
 
 
@@ -293,6 +294,10 @@ def _check(name, reason="", loose="", range_share=0.05, effect="delay"):
         ((), 0.2, 3.0, 0.5, False, "rest on the model's form"),
         # Determined, but its interval spans 95 % of its range: an undone effect is refused.
         (("", "its 95 % interval spans 95 %", 0.95), 0.2, 3.0, 2.0, False, "spans 95 %"),
+        # Free, and the gas moves across its interval by as much as the change: refused.
+        (("", "spans 95 %", 0.95, 3.0), 0.2, 3.0, 2.0, False, "the gas moves +-3 degC rms"),
+        # Free, but the gas moves across it by less than the change: the band carries it.
+        (("", "spans 95 %", 0.95, 1.0), 0.2, 3.0, 2.0, True, ""),
         # Loose short of free: the band decides.
         (("", "its 95 % interval spans 60 %", 0.6), 0.2, 3.0, 2.0, True, ""),
         # Reaching a bound (a ratio that may be 0) with a narrow interval refuses nothing.
@@ -346,6 +351,50 @@ def test_a_determined_parameter_whose_interval_spans_its_physical_range_is_not_p
     summary = rho1.summary()
     assert summary["determined"] and not summary["pinned"] and summary["loose"] == rho1.loose
     assert rho1 not in found.undetermined()
+
+
+def test_a_free_parameter_that_moves_the_gas_less_than_the_change_widens_the_band():
+    """The free parameter's move joins the jackknife band in quadrature, for applied effects."""
+    from tcomp_core.diagnose.identification import Identification
+
+    found = Identification(
+        checks=(
+            _check("delay_s", "", "spans 95 %", 0.95, 0.4),
+            _check("gain", "", "spans 95 %", 0.95, 5.0, effect="calibration"),
+        ),
+        band_c=0.3,
+        change_c=3.0,
+        evidence_c=2.0,
+    )
+    assert found.output_band_c(("delay",)) == pytest.approx(0.5)
+    assert found.output_band_c(()) == pytest.approx(0.3)
+    assert found.checks[0].summary()["gas_move_c"] == 0.4
+
+
+def test_a_hot_pair_is_corrected_in_level_though_the_wall_is_left_free():
+    """bags/radiation_500hz: the wires read about 21 degC low and 12 degC apart, where the
+    sensors' class-2 tolerance allows 7.7 degC. Fitted with the sensors' level difference,
+    the wall temperature spans its range; the gas level moves across it by less than the
+    radiation correction, so the level is corrected, with that move in the published band."""
+    from tcomp_core.bundled import bundled_bag
+    from tcomp_core.cli.reconstruct import model_band_variance
+    from tcomp_core.compensation import fit_output_model
+    from tcomp_core.diagnose.uncertainty import Z95
+    from tcomp_core.io import read_record
+
+    record = read_record(bundled_bag("radiation_500hz"))
+    model = fit_output_model(record, ("radiation",))
+    assert model.applied() == ("radiation",)
+    found = model.identification
+    wall = next(check for check in found.checks if check.name == "wall_c")
+    assert wall.free and 0.0 < wall.gas_move_c < found.change_c
+    band = math.sqrt(model_band_variance(model)) * Z95
+    assert band == pytest.approx(found.output_band_c(("radiation",)))
+    assert band >= wall.gas_move_c > found.band_c
+    gas = compensate(model, record.time, record.tc1, record.tc2, record.dt).gas
+    inner = slice(500, gas.size - 500)
+    offset = float(np.nanmean(gas[inner]) - np.mean(record.ref[inner]))
+    assert abs(offset) < 0.2 * 21.0
 
 
 def test_a_level_handled_as_dynamics_is_not_refused_for_a_loose_parameter():

@@ -220,7 +220,7 @@ def test_radiation_on_a_ramp_is_left_only_what_the_sensors_calibration_cannot_ex
     # At 680 degC the wires' radiative losses leave the sensors 8.8 degC apart in level, and
     # class 2 allows 7.6 degC there: the base model fits the level difference (level_c), so
     # radiation keeps only the 1.2 degC beyond class 2 and the T^4 bend along the ramp. Its
-    # model error is 4x lower (1.08 -> 0.26 %), but at K = 1 % the raw error falls 8.5 %
+    # model error is lower (0.41 -> 0.26 %), but at K = 1 % the raw error falls a few percent
     # only (noise floor 2.64 %): too little to be called. (Before level_c the whole level
     # difference counted for radiation, and every pair's class-2 offset for some effect.)
     record, sim = _record("radiation", "ramp", FAST, 1.0, 4)
@@ -231,7 +231,7 @@ def test_radiation_on_a_ramp_is_left_only_what_the_sensors_calibration_cannot_ex
     assert found.base.params["level_c"] == pytest.approx(
         float(np.mean(record.tc2 - record.tc1)), abs=1.5
     )
-    assert found.suspects[0].error_pct < 0.5 * found.base.error_pct
+    assert found.suspects[0].error_pct < 0.8 * found.base.error_pct
     # Not called, radiation's shortening of τ (by 1 + ρ, ρ about 5 %) stays in the first order's.
     assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.08)
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.08)

@@ -436,15 +436,17 @@ def _first_order_gas(
 def model_band_variance(model: OutputModel) -> float:
     """Variance the output model's own uncertainty adds to its gas, (degrees C)**2.
 
-    The rms 95 % jackknife band of the applied fit (:mod:`tcomp_core.diagnose.identification`)
-    as a variance; 0 when nothing is applied or the band is unknown.
+    The rms 95 % band of the applied fit (the jackknife's, with what its free parameters
+    move: :meth:`~tcomp_core.diagnose.identification.Identification.output_band_c`) as a
+    variance; 0 when nothing is applied or the band is unknown.
     """
     from ..diagnose.uncertainty import Z95
 
     found = model.identification
-    if not model.applied() or found is None or not math.isfinite(found.band_c):
+    if not model.applied() or found is None:
         return 0.0
-    return (found.band_c / Z95) ** 2
+    band = found.output_band_c(model.applied())
+    return (band / Z95) ** 2 if math.isfinite(band) else 0.0
 
 
 def _write_gas(

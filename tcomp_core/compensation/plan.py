@@ -27,7 +27,8 @@ fit is not trusted with the gas at all (every piece ``first order``, on the firs
 τ) when it is no physical sensor (:meth:`~tcomp_core.effects.Model.implausible`), when a
 parameter of an applied effect is not determined by the data (singular, or on a bound of its
 physical range), when a parameter of an effect it undoes (``compensated`` or ``prior``) is
-free (its 95 % interval spans 90 % of its range or more: the data say nothing of it), when
+free (its 95 % interval spans 90 % of its range or more: the data say nothing of it) and
+moves the gas across that interval by as much as the change the model makes, when
 the change it makes to the gas is several times the two sensors'
 disagreement (the only evidence of what first order lacks), or when the 95 % band on the gas
 (refits leaving out one stretch of the record at a time) is as wide as that change
@@ -259,10 +260,16 @@ class OutputModel:
         lines += [f"  {piece.effect}: {piece.handling} ({piece.reason})" for piece in pieces]
         if self.identification is not None and self.identification.checks:
             found = self.identification
+            output_band = found.output_band_c(self.applied(causal_stream))
+            with_free = (
+                f", +-{output_band:.3g} with its free parameters"
+                if output_band > found.band_c
+                else ""
+            )
             lines.append(
-                f"  identified: gas band +-{found.band_c:.3g} degC rms (95 %) against a change "
-                f"of {found.change_c:.3g} degC rms; the sensors' first-order disagreement "
-                f"{found.evidence_c:.3g} degC rms"
+                f"  identified: gas band +-{found.band_c:.3g} degC rms (95 %{with_free}) against "
+                f"a change of {found.change_c:.3g} degC rms; the sensors' first-order "
+                f"disagreement {found.evidence_c:.3g} degC rms"
             )
             lines += [f"    {check.describe()}" for check in found.checks]
         return lines
@@ -402,9 +409,17 @@ def _refusal(
         listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
         return f"not pinned down by the data ({listed}): first order is what they identify"
     undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
-    free = [check for check in found.checks if check.effect in undone and check.free]
+    free = [
+        check
+        for check in found.checks
+        if check.effect in undone and check.free and not check.gas_move_c < found.change_c
+    ]
     if free:
-        listed = "; ".join(f"{check.name}: {check.loose}" for check in free)
+        listed = "; ".join(
+            f"{check.name}: {check.loose}, across which the gas moves "
+            f"+-{check.gas_move_c:.3g} degC rms against a change of {found.change_c:.3g}"
+            for check in free
+        )
         return f"not pinned down by the data ({listed}): first order is what they identify"
     if found.extrapolates:
         return (

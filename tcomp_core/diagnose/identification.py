@@ -21,8 +21,14 @@ time constant) is **loose**, and the report says so. Reaching a bound refuses no
 itself (a thin wire's radiative ratio may well be 0 while the thick one's is not); an effect
 the gas would undo with all its parameters (:mod:`tcomp_core.compensation.plan`) is not
 applied when one of them is **free**, its interval spanning :data:`FREE_SHARE` of its range or
-more: the data say nothing of it (conduction on a mixing rig with a hidden speed drift, the
-supports' lag and temperatures spanning 95–100 % of their ranges, made the gas 8 → 58 % off).
+more, and the gas moves across that interval (along the fit's valley, the other parameters
+following it) by as much as the change the model makes: the data say nothing of it and it
+decides the gas (conduction on a mixing rig with a hidden speed drift, the supports' lag and
+temperatures spanning 95–100 % of their ranges, made the gas 8 → 58 % off). A free parameter
+that moves the gas by less is part of the band instead: a hot radiating pair whose level
+difference the sensors' class-2 tolerance may share has its wall temperature anywhere in its
+range, which moves the gas level by ±13 °C rms where radiation corrects it by 21 °C (the gas
+error falls 41 → 4 %).
 A loose parameter short of that is the band's business: the covariance overstates some
 intervals (a true radiation's ρ1 spans 51–59 % of 0 .. 0.2 while its gas band is narrow),
 and a level the data do not fix moves the gas by nothing when it is not applied (a wall
@@ -117,6 +123,10 @@ class ParameterCheck:
     range_share : float
         Share of its range (search bounds, in the search coordinates) its 95 % interval
         spans (NaN when not determined).
+    gas_move_c : float
+        rms 95 % half-width of the gas when the parameter goes to the ends of its interval
+        along the fit's valley (the other parameters following it by their covariance),
+        degrees C; NaN when not computed (the parameter is not free, or not determined).
     """
 
     effect: str
@@ -129,6 +139,7 @@ class ParameterCheck:
     reason: str = ""
     loose: str = ""
     range_share: float = math.nan
+    gas_move_c: float = math.nan
 
     @property
     def free(self) -> bool:
@@ -159,6 +170,7 @@ class ParameterCheck:
             "reason": self.reason,
             "loose": self.loose,
             "range_share": _finite(self.range_share),
+            "gas_move_c": _finite(self.gas_move_c),
         }
 
     def describe(self) -> str:
@@ -169,6 +181,8 @@ class ParameterCheck:
             state = f"NOT pinned down: {self.loose}"
         else:
             state = "pinned down"
+        if math.isfinite(self.gas_move_c):
+            state += f"; across it the gas moves +-{self.gas_move_c:.3g} degC rms"
         return (
             f"{self.name} = {self.value:.4g} (95 % {self.low:.4g} .. {self.high:.4g}; "
             f"|corr. with tau| {self.tau_correlation:.3f}): {state}"
@@ -213,6 +227,21 @@ class Identification:
             for check in self.checks
             if not check.determined and (effects is None or check.effect in effects)
         )
+
+    def output_band_c(self, effects: tuple[str, ...]) -> float:
+        """The rms 95 % half-width of the published gas when ``effects`` are applied, degrees C.
+
+        The jackknife band with, in quadrature, the move across each free parameter of those
+        effects (:attr:`ParameterCheck.gas_move_c`): the refits share the fit's priors, so
+        they cannot see what only a prior decides (a wall temperature behind the sensors'
+        level difference).
+        """
+        moves = [
+            check.gas_move_c
+            for check in self.checks
+            if check.effect in effects and math.isfinite(check.gas_move_c)
+        ]
+        return math.sqrt(self.band_c**2 + sum(move**2 for move in moves))
 
     @property
     def band_exceeds_change(self) -> bool:
@@ -295,6 +324,42 @@ def _jackknife_band(
     count = len(gases)
     variance = (count - 1) / count * np.sum((stacked - stacked.mean(axis=0)) ** 2, axis=0)
     return Z95 * math.sqrt(float(np.mean(variance))), ""
+
+
+def _valley_move(
+    model: Model,
+    covariance: ParameterCovariance,
+    name: str,
+    gas_of: Callable[[Model], NDArray[np.float64]],
+    keep: NDArray[np.bool_],
+    level_free: bool,
+) -> float:
+    """The rms 95 % half-width of the gas as ``name`` crosses its interval along the valley.
+
+    The searched parameters move by ±1.96 times the covariance's column of ``name`` over its
+    standard deviation (the others follow it as the fit lets them), clipped to their bounds;
+    the gas at both ends, half their difference, rms over ``keep`` (means removed when
+    ``level_free``). NaN when the covariance does not give it.
+    """
+    matrix = covariance.matrix
+    index = covariance.names.index(name)
+    if matrix is None or not matrix[index, index] > 0.0:
+        return math.nan
+    step = Z95 * matrix[:, index] / math.sqrt(matrix[index, index])
+    ends = []
+    for sign in (-1.0, 1.0):
+        x = np.clip(covariance.x + sign * step, covariance.lower, covariance.upper)
+        params = dict(model.params)
+        for key, value in zip(covariance.names, x, strict=True):
+            params[key] = math.exp(value) if key.startswith("tau") else float(value)
+        try:
+            ends.append(gas_of(Model(model.effects, params)))
+        except (EstimationError, ValueError, ArithmeticError):
+            return math.inf
+    half = 0.5 * (ends[1] - ends[0])
+    if level_free:
+        half = half - np.mean(half[keep])
+    return _rms(half, keep)
 
 
 def _looseness(spec: ParamSpec, low: float, high: float) -> tuple[str, float]:
@@ -397,6 +462,9 @@ def identify(
         elif name in covariance.at_bound:
             reason = "on a bound of its physical range"
         loose, share = ("", math.nan) if reason else _looseness(spec, low, high)
+        move = math.nan
+        if share >= FREE_SHARE:
+            move = _valley_move(model, covariance, name, gas_of, keep, level_free)
         checks.append(
             ParameterCheck(
                 effect=effect,
@@ -409,6 +477,7 @@ def identify(
                 reason=reason,
                 loose=loose,
                 range_share=share,
+                gas_move_c=move,
             )
         )
     return Identification(
