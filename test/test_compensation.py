@@ -265,7 +265,9 @@ def test_the_rules_say_how_each_effect_is_treated():
         )
 
 
-def _check(name, reason="", loose="", range_share=0.05, gas_move_c=math.nan, effect="delay"):
+def _check(
+    name, reason="", loose="", range_share=0.05, gas_move_c=math.nan, shape=0.0, effect="delay"
+):
     from tcomp_core.diagnose.identification import ParameterCheck
 
     return ParameterCheck(
@@ -280,6 +282,7 @@ def _check(name, reason="", loose="", range_share=0.05, gas_move_c=math.nan, eff
         loose=loose,
         range_share=range_share,
         gas_move_c=gas_move_c,
+        gas_shape_move_c=shape,
     )
 
 
@@ -296,8 +299,10 @@ def _check(name, reason="", loose="", range_share=0.05, gas_move_c=math.nan, eff
         (("", "its 95 % interval spans 95 %", 0.95), 0.2, 3.0, 2.0, False, "spans 95 %"),
         # Free, and the gas moves across its interval by as much as the change: refused.
         (("", "spans 95 %", 0.95, 3.0), 0.2, 3.0, 2.0, False, "the gas moves +-3 degC rms"),
-        # Free, but the gas moves across it by less than the change: the band carries it.
-        (("", "spans 95 %", 0.95, 1.0), 0.2, 3.0, 2.0, True, ""),
+        # Free, but it moves the gas's level by less than the change: the band carries it.
+        (("", "spans 95 %", 0.95, 1.0, 0.1), 0.2, 3.0, 2.0, True, ""),
+        # Free, and it moves the gas's fluctuation by as much as the band: refused.
+        (("", "spans 95 %", 0.95, 1.0, 0.3), 0.2, 3.0, 2.0, False, "+-0.3 in its fluct"),
         # Loose short of free: the band decides.
         (("", "its 95 % interval spans 60 %", 0.6), 0.2, 3.0, 2.0, True, ""),
         # Reaching a bound (a ratio that may be 0) with a narrow interval refuses nothing.
@@ -374,8 +379,9 @@ def test_a_free_parameter_that_moves_the_gas_less_than_the_change_widens_the_ban
 def test_a_hot_pair_is_corrected_in_level_though_the_wall_is_left_free():
     """bags/radiation_500hz: the wires read about 21 degC low and 12 degC apart, where the
     sensors' class-2 tolerance allows 7.7 degC. Fitted with the sensors' level difference,
-    the wall temperature spans its range; the gas level moves across it by less than the
-    radiation correction, so the level is corrected, with that move in the published band."""
+    the wall temperature spans its range; across it the gas's level moves by less than the
+    radiation correction and its fluctuation hardly at all, so the level is corrected, with
+    that move in the published band."""
     from tcomp_core.bundled import bundled_bag
     from tcomp_core.cli.reconstruct import model_band_variance
     from tcomp_core.compensation import fit_output_model
@@ -388,6 +394,7 @@ def test_a_hot_pair_is_corrected_in_level_though_the_wall_is_left_free():
     found = model.identification
     wall = next(check for check in found.checks if check.name == "wall_c")
     assert wall.free and 0.0 < wall.gas_move_c < found.change_c
+    assert wall.gas_shape_move_c < found.band_c < 0.1 * wall.gas_move_c  # a level, not a shape
     band = math.sqrt(model_band_variance(model)) * Z95
     assert band == pytest.approx(found.output_band_c(("radiation",)))
     assert band >= wall.gas_move_c > found.band_c

@@ -28,7 +28,8 @@ fit is not trusted with the gas at all (every piece ``first order``, on the firs
 parameter of an applied effect is not determined by the data (singular, or on a bound of its
 physical range), when a parameter of an effect it undoes (``compensated`` or ``prior``) is
 free (its 95 % interval spans 90 % of its range or more: the data say nothing of it) and
-moves the gas across that interval by as much as the change the model makes, when
+moves the gas across that interval by as much as the change the model makes, or its
+fluctuation by as much as the band, when
 the change it makes to the gas is several times the two sensors'
 disagreement (the only evidence of what first order lacks), or when the 95 % band on the gas
 (refits leaving out one stretch of the record at a time) is as wide as that change
@@ -412,12 +413,16 @@ def _refusal(
     free = [
         check
         for check in found.checks
-        if check.effect in undone and check.free and not check.gas_move_c < found.change_c
+        if check.effect in undone
+        and check.free
+        and not (check.gas_move_c < found.change_c and check.gas_shape_move_c < found.band_c)
     ]
     if free:
         listed = "; ".join(
             f"{check.name}: {check.loose}, across which the gas moves "
-            f"+-{check.gas_move_c:.3g} degC rms against a change of {found.change_c:.3g}"
+            f"+-{check.gas_move_c:.3g} degC rms (+-{check.gas_shape_move_c:.3g} in its "
+            f"fluctuation) against a change of {found.change_c:.3g} and a band of "
+            f"+-{found.band_c:.3g}"
             for check in free
         )
         return f"not pinned down by the data ({listed}): first order is what they identify"

@@ -22,13 +22,16 @@ itself (a thin wire's radiative ratio may well be 0 while the thick one's is not
 the gas would undo with all its parameters (:mod:`tcomp_core.compensation.plan`) is not
 applied when one of them is **free**, its interval spanning :data:`FREE_SHARE` of its range or
 more, and the gas moves across that interval (along the fit's valley, the other parameters
-following it) by as much as the change the model makes: the data say nothing of it and it
-decides the gas (conduction on a mixing rig with a hidden speed drift, the supports' lag and
-temperatures spanning 95–100 % of their ranges, made the gas 8 → 58 % off). A free parameter
-that moves the gas by less is part of the band instead: a hot radiating pair whose level
-difference the sensors' class-2 tolerance may share has its wall temperature anywhere in its
-range, which moves the gas level by ±13 °C rms where radiation corrects it by 21 °C (the gas
-error falls 41 → 4 %).
+following it) in its fluctuation by as much as the band, or in all by as much as the change
+the model makes: the data say nothing of it and it decides the gas (conduction on a mixing
+rig with a hidden speed drift, the supports' lag and temperatures spanning 95–100 % of their
+ranges, moved the gas's fluctuation by ±14 °C rms against a band of ±8 °C, and made the gas
+8 → 58 % off). A free parameter that moves only the gas's level, by less than the change, is
+part of the published band instead (:meth:`Identification.output_band_c`): the level is known
+no better than the sensors' tolerance anyway. A hot radiating pair, whose level difference
+the sensors' class-2 tolerance may share, has its wall temperature anywhere in its range,
+which moves the gas level by ±13 °C rms (its fluctuation by ±0.3 °C) where radiation corrects
+it by 21 °C: the gas error falls 41 → 4 %.
 A loose parameter short of that is the band's business: the covariance overstates some
 intervals (a true radiation's ρ1 spans 51–59 % of 0 .. 0.2 while its gas band is narrow),
 and a level the data do not fix moves the gas by nothing when it is not applied (a wall
@@ -127,6 +130,9 @@ class ParameterCheck:
         rms 95 % half-width of the gas when the parameter goes to the ends of its interval
         along the fit's valley (the other parameters following it by their covariance),
         degrees C; NaN when not computed (the parameter is not free, or not determined).
+    gas_shape_move_c : float
+        The same with the move's mean over the record removed: what the parameter moves in
+        the gas's fluctuation rather than its level, degrees C.
     """
 
     effect: str
@@ -140,6 +146,7 @@ class ParameterCheck:
     loose: str = ""
     range_share: float = math.nan
     gas_move_c: float = math.nan
+    gas_shape_move_c: float = math.nan
 
     @property
     def free(self) -> bool:
@@ -171,6 +178,7 @@ class ParameterCheck:
             "loose": self.loose,
             "range_share": _finite(self.range_share),
             "gas_move_c": _finite(self.gas_move_c),
+            "gas_shape_move_c": _finite(self.gas_shape_move_c),
         }
 
     def describe(self) -> str:
@@ -182,7 +190,10 @@ class ParameterCheck:
         else:
             state = "pinned down"
         if math.isfinite(self.gas_move_c):
-            state += f"; across it the gas moves +-{self.gas_move_c:.3g} degC rms"
+            state += (
+                f"; across it the gas moves +-{self.gas_move_c:.3g} degC rms, "
+                f"+-{self.gas_shape_move_c:.3g} of it in its fluctuation"
+            )
         return (
             f"{self.name} = {self.value:.4g} (95 % {self.low:.4g} .. {self.high:.4g}; "
             f"|corr. with tau| {self.tau_correlation:.3f}): {state}"
@@ -333,18 +344,19 @@ def _valley_move(
     gas_of: Callable[[Model], NDArray[np.float64]],
     keep: NDArray[np.bool_],
     level_free: bool,
-) -> float:
+) -> tuple[float, float]:
     """The rms 95 % half-width of the gas as ``name`` crosses its interval along the valley.
 
     The searched parameters move by ±1.96 times the covariance's column of ``name`` over its
     standard deviation (the others follow it as the fit lets them), clipped to their bounds;
-    the gas at both ends, half their difference, rms over ``keep`` (means removed when
-    ``level_free``). NaN when the covariance does not give it.
+    the gas at both ends, half their difference, rms over ``keep`` (its mean removed when
+    ``level_free``), and the same with its mean removed. NaN when the covariance does not
+    give it.
     """
     matrix = covariance.matrix
     index = covariance.names.index(name)
     if matrix is None or not matrix[index, index] > 0.0:
-        return math.nan
+        return math.nan, math.nan
     step = Z95 * matrix[:, index] / math.sqrt(matrix[index, index])
     ends = []
     for sign in (-1.0, 1.0):
@@ -355,11 +367,10 @@ def _valley_move(
         try:
             ends.append(gas_of(Model(model.effects, params)))
         except (EstimationError, ValueError, ArithmeticError):
-            return math.inf
+            return math.inf, math.inf
     half = 0.5 * (ends[1] - ends[0])
-    if level_free:
-        half = half - np.mean(half[keep])
-    return _rms(half, keep)
+    shape = half - np.nanmean(half[keep])
+    return _rms(shape if level_free else half, keep), _rms(shape, keep)
 
 
 def _looseness(spec: ParamSpec, low: float, high: float) -> tuple[str, float]:
@@ -462,9 +473,9 @@ def identify(
         elif name in covariance.at_bound:
             reason = "on a bound of its physical range"
         loose, share = ("", math.nan) if reason else _looseness(spec, low, high)
-        move = math.nan
+        move = shape_move = math.nan
         if share >= FREE_SHARE:
-            move = _valley_move(model, covariance, name, gas_of, keep, level_free)
+            move, shape_move = _valley_move(model, covariance, name, gas_of, keep, level_free)
         checks.append(
             ParameterCheck(
                 effect=effect,
@@ -478,6 +489,7 @@ def identify(
                 loose=loose,
                 range_share=share,
                 gas_move_c=move,
+                gas_shape_move_c=shape_move,
             )
         )
     return Identification(
