@@ -303,8 +303,9 @@ def _check(
         (("", "spans 95 %", 0.95, 1.0, 0.1), 0.2, 3.0, 2.0, True, ""),
         # Free, and it moves the gas's fluctuation by as much as the band: refused.
         (("", "spans 95 %", 0.95, 1.0, 0.3), 0.2, 3.0, 2.0, False, "+-0.3 in its fluct"),
-        # Loose short of free: the band decides.
-        (("", "its 95 % interval spans 60 %", 0.6), 0.2, 3.0, 2.0, True, ""),
+        # Wide short of free: its move decides, against the change (a true radiation's rho1).
+        (("", "its 95 % interval spans 60 %", 0.6, 2.0, 0.5), 0.2, 3.0, 2.0, True, ""),
+        (("", "its 95 % interval spans 60 %", 0.6, 4.0, 0.5), 0.2, 3.0, 2.0, False, "+-4 degC"),
         # Reaching a bound (a ratio that may be 0) with a narrow interval refuses nothing.
         (("", "its 95 % interval reaches 0", 0.1), 0.2, 3.0, 2.0, True, ""),
     ],

@@ -27,9 +27,9 @@ fit is not trusted with the gas at all (every piece ``first order``, on the firs
 τ) when it is no physical sensor (:meth:`~tcomp_core.effects.Model.implausible`), when a
 parameter of an applied effect is not determined by the data (singular, or on a bound of its
 physical range), when a parameter of an effect it undoes (``compensated`` or ``prior``) is
-free (its 95 % interval spans 90 % of its range or more: the data say nothing of it) and
-moves the gas across that interval by as much as the change the model makes, or its
-fluctuation by as much as the band, when
+wide (its 95 % interval spans half its range or more) and moves the gas across that
+interval by as much as the change the model makes, or is free (90 % or more: the data say
+nothing of it) and moves the gas's fluctuation by as much as the band, when
 the change it makes to the gas is several times the two sensors'
 disagreement (the only evidence of what first order lacks), or when the 95 % band on the gas
 (refits leaving out one stretch of the record at a time) is as wide as that change
@@ -414,8 +414,11 @@ def _refusal(
         check
         for check in found.checks
         if check.effect in undone
-        and check.free
-        and not (check.gas_move_c < found.change_c and check.gas_shape_move_c < found.band_c)
+        and check.wide
+        and not (
+            check.gas_move_c < found.change_c
+            and (check.gas_shape_move_c < found.band_c or not check.free)
+        )
     ]
     if free:
         listed = "; ".join(

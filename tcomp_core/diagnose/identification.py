@@ -31,10 +31,15 @@ part of the published band instead (:meth:`Identification.output_band_c`): the l
 no better than the sensors' tolerance anyway. A hot radiating pair, whose level difference
 the sensors' class-2 tolerance may share, has its wall temperature anywhere in its range,
 which moves the gas level by ±13 °C rms (its fluctuation by ±0.3 °C) where radiation corrects
-it by 21 °C: the gas error falls 41 → 4 %.
-A loose parameter short of that is the band's business: the covariance overstates some
-intervals (a true radiation's ρ1 spans 51–59 % of 0 .. 0.2 while its gas band is narrow),
-and a level the data do not fix moves the gas by nothing when it is not applied (a wall
+it by 21 °C: the gas error falls 41 → 4 %. A **wide** parameter, its interval spanning
+:data:`LOOSE_SHARE` of its range or more, refuses the effect when the gas moves across it by
+as much as the change (conduction read into a radiating exhaust, campaign draw 408: the
+supports' temperatures spanning 74 % of their range moved the gas by ±87 °C rms against a
+change of 17 °C, which had put the gas 12.5 °C further off); short of that its fluctuation
+is the band's business, the covariance overstating some intervals (a true radiation's ρ1
+spans 51–59 % of 0 .. 0.2 and moves the gas's fluctuation by ±3.6 °C rms, where fits on new
+noise spread 4 times less).
+A level the data do not fix moves the gas by nothing when it is not applied (a wall
 temperature anywhere in −73 .. 509 °C behind a radiative ratio near 0).
 
 And the model as a whole: the **95 % band** on the gas must be narrower than the **change** its
@@ -129,7 +134,7 @@ class ParameterCheck:
     gas_move_c : float
         rms 95 % half-width of the gas when the parameter goes to the ends of its interval
         along the fit's valley (the other parameters following it by their covariance),
-        degrees C; NaN when not computed (the parameter is not free, or not determined).
+        degrees C; NaN when not computed (the parameter is not wide, or not determined).
     gas_shape_move_c : float
         The same with the move's mean over the record removed: what the parameter moves in
         the gas's fluctuation rather than its level, degrees C.
@@ -147,6 +152,11 @@ class ParameterCheck:
     range_share: float = math.nan
     gas_move_c: float = math.nan
     gas_shape_move_c: float = math.nan
+
+    @property
+    def wide(self) -> bool:
+        """Whether its interval spans :data:`LOOSE_SHARE` of its range or more."""
+        return bool(self.range_share >= LOOSE_SHARE)
 
     @property
     def free(self) -> bool:
@@ -250,7 +260,7 @@ class Identification:
         moves = [
             check.gas_move_c
             for check in self.checks
-            if check.effect in effects and math.isfinite(check.gas_move_c)
+            if check.effect in effects and check.free and math.isfinite(check.gas_move_c)
         ]
         return math.sqrt(self.band_c**2 + sum(move**2 for move in moves))
 
@@ -474,7 +484,7 @@ def identify(
             reason = "on a bound of its physical range"
         loose, share = ("", math.nan) if reason else _looseness(spec, low, high)
         move = shape_move = math.nan
-        if share >= FREE_SHARE:
+        if share >= LOOSE_SHARE:  # wide: what it moves decides (compensation.plan)
             move, shape_move = _valley_move(model, covariance, name, gas_of, keep, level_free)
         checks.append(
             ParameterCheck(
