@@ -71,3 +71,17 @@ def test_a_record_whose_flow_speed_drifts_gets_a_first_order_estimate():
     result = estimate(record.tc1, record.tc2, record.dt, "ml-eiv", phi=1.0)
     assert result.params["evaluations"] > 300
     assert 0.0 < result.tau1 < result.tau2 < 10 * truth["tau2"]
+
+
+def test_a_fit_whose_wide_parameters_move_the_gas_more_than_it_corrects_is_not_applied():
+    # Draw 408: a radiating exhaust at 2 kHz (both wires read about 17 degC low) read as
+    # conduction. The supports' temperatures span three quarters of their range, and across
+    # them the gas moves by several times the correction: applied, the gas went 12.5 degC
+    # further from the truth (13.5 -> 22.0 % against the default path's).
+    row = bench_compensate.campaign_row(408)
+    assert "error" not in row, row.get("error")
+    assert "radiation" in row["truth"]
+    default, final = row["smoother_default"], row["smoother_final"]
+    assert not campaign_draws.materially_worse(default, final), (default, final)
+    for piece in row["pieces"]:
+        assert piece["handling"] == "first order" or piece["effect"] != "conduction", piece
