@@ -219,6 +219,12 @@ class Evaluator:
         gas1, gas2 = model.reconstruct(*self.readings, self.context)
         identification = None
         base_taus = self.context.base_taus_s
+        intervals = covariance.intervals()
+        # A piece undone for the dynamics only keeps first order's level: its change and band
+        # are compared without their means, as the gas is published.
+        level_free = any(
+            effect.output_handling(intervals)[0] == "dynamics" for effect in model.instances
+        )
         if model.effects and base_taus is not None:
             identification = identify(
                 model,
@@ -229,7 +235,7 @@ class Evaluator:
                 self.lowpass,
                 self.scored_mask(model)[:-1],
                 lambda rows: model.fit(*self._fit_inputs, rows, held),
-                level_free="calibration" in model.effects,
+                level_free=level_free,
             )
         return replace(
             fit,
@@ -239,7 +245,7 @@ class Evaluator:
             predicted=predicted,
             gas1=_pad(gas1),
             gas2=_pad(gas2),
-            intervals=covariance.intervals(),
+            intervals=intervals,
             at_bound=covariance.at_bound,
             identification=identification,
         )
