@@ -410,7 +410,7 @@ def _refusal(
         listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
         return f"not pinned down by the data ({listed}): first order is what they identify"
     undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
-    free = [
+    deciding = [  # wide or free parameters that decide the gas (identification's notes)
         check
         for check in found.checks
         if check.effect in undone
@@ -420,13 +420,13 @@ def _refusal(
             and (check.gas_shape_move_c < found.band_c or not check.free)
         )
     ]
-    if free:
+    if deciding:
         listed = "; ".join(
             f"{check.name}: {check.loose}, across which the gas moves "
             f"+-{check.gas_move_c:.3g} degC rms (+-{check.gas_shape_move_c:.3g} in its "
             f"fluctuation) against a change of {found.change_c:.3g} and a band of "
             f"+-{found.band_c:.3g}"
-            for check in free
+            for check in deciding
         )
         return f"not pinned down by the data ({listed}): first order is what they identify"
     if found.extrapolates:
