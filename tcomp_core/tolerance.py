@@ -8,10 +8,15 @@ which calls a difference within it the sensors' ordinary state, use these figure
 
 from __future__ import annotations
 
-__all__ = ["CLASS2_GAIN", "CLASS2_OFFSET_C"]
+__all__ = ["CLASS2_GAIN", "CLASS2_OFFSET_C", "class2_level_tolerance_c"]
 
 #: Relative gain between two class-2 sensors, dimensionless.
 CLASS2_GAIN = 0.0075
 #: Offset between two class-2 sensors at the level, degrees C, to which CLASS2_GAIN of the
 #: level is added.
 CLASS2_OFFSET_C = 2.5
+
+
+def class2_level_tolerance_c(level_c: float) -> float:
+    """How far two class-2 sensors may differ in level at ``level_c`` (degrees C), degrees C."""
+    return CLASS2_OFFSET_C + CLASS2_GAIN * abs(level_c)

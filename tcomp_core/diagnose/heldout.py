@@ -30,7 +30,7 @@ from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
-from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
+from ..tolerance import class2_level_tolerance_c
 from .identification import held_edges, identify
 from .prepare import PreparedData
 from .result import ModelFit
@@ -164,7 +164,7 @@ class Evaluator:
         shift = float(np.mean(measured[train] - predicted[train]))
         if model.has_level:
             level_c = self.context.level_mean_c
-            tolerance = CLASS2_OFFSET_C + CLASS2_GAIN * abs(level_c)
+            tolerance = class2_level_tolerance_c(level_c)
             shift = float(np.clip(shift, -tolerance, tolerance))
         if math.isfinite(shift):
             predicted = predicted + shift

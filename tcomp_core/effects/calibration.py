@@ -13,7 +13,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
+from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C, class2_level_tolerance_c
 from .base import Effect, Evidence, FitContext, ParamSpec
 
 __all__ = ["CLASS2_GAIN", "CLASS2_MARGIN", "CLASS2_OFFSET_C", "Calibration"]
@@ -55,7 +55,7 @@ class Calibration(Effect):
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         level = evidence.level_mean_c
         at_mean = (params["gain"] - 1.0) * level + params["offset_c"]
-        tolerance = CLASS2_OFFSET_C + CLASS2_GAIN * abs(level)
+        tolerance = class2_level_tolerance_c(level)
         return bool(
             abs(params["gain"] - 1.0) > CLASS2_MARGIN * CLASS2_GAIN
             or abs(at_mean) > CLASS2_MARGIN * tolerance

@@ -27,7 +27,7 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from ..errors import EstimationError
-from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
+from ..tolerance import class2_level_tolerance_c
 from .base import KELVIN, Effect, FitContext, ParamSpec
 from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
 from .registry import EFFECTS, check_effect_names
@@ -256,7 +256,7 @@ def _level_prior_sd(context: FitContext) -> float:
     prior decides only what they cannot: how much of a level difference an effect that also
     shifts the level (a radiative loss) takes, which is then as much as it can explain.
     """
-    return (CLASS2_OFFSET_C + CLASS2_GAIN * abs(context.level_mean_c)) / 1.959963984540054
+    return class2_level_tolerance_c(context.level_mean_c) / 1.959963984540054
 
 
 @functools.lru_cache(maxsize=16)
