@@ -15,8 +15,11 @@ from ..choices import DEFAULT_METHOD, DEFAULT_TOPICS, METHODS, parse_effect_list
 from ..errors import TcompError
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from ..estimators import Estimate
     from ..io import Record
+    from ..lines import ForeignLine
 
 __all__ = [
     "Verbs",
@@ -242,7 +245,31 @@ def estimate_with(record: Record, args: argparse.Namespace, method: str) -> Esti
         prefilter_hz=args.prefilter_hz,
     )
     warn_beyond_class_2(record.source, result.params)
+    warn_foreign_lines(record.source, result.lines)
     return result
+
+
+def warn_foreign_lines(source: str, lines: Sequence[ForeignLine]) -> None:
+    """Warn that τ was estimated with lines one sensor carries notched from both signals."""
+    import warnings
+
+    from ..errors import TcompWarning
+
+    for channel in (1, 2):
+        mine = [line for line in lines if line.channel == channel]
+        if not mine:
+            continue
+        listed = ", ".join(
+            f"{line.frequency_hz:.4g} Hz ({line.amplitude_c:.3g} °C)" for line in mine
+        )
+        warnings.warn(
+            f"{source}: tc{channel} carries spectral lines that tc{3 - channel} does not: "
+            f"{listed}, pick-up such as the mains, not gas. τ is estimated with them notched "
+            f"from both readings, and the gas is reconstructed without them on tc{channel}; "
+            "check that sensor's shielding and grounding",
+            TcompWarning,
+            stacklevel=2,
+        )
 
 
 def warn_beyond_class_2(source: str, params: dict[str, float]) -> None:

@@ -108,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
         for with options of the difference equation.
     """
     from ..compensation import parse_compensate_effects
+    from ..lines import line_free_pair
 
     record = read_data(args)
     if (args.tau1 is None) != (args.tau2 is None):
@@ -119,22 +120,33 @@ def run(args: argparse.Namespace) -> int:
         if args.tau1 is not None:
             raise TcompError("--effects fits tau1 and tau2 with the effects: drop --tau1/--tau2")
         return _run_compensated(record, args, effects)
+    readings = record.tc1, record.tc2
     if args.tau1 is None:
         result = estimate_with(record, args, args.method)
         tau1, tau2 = result.tau1, result.tau2
         print(f"{args.method}: tau1 = {tau1:.6f} s, tau2 = {tau2:.6f} s")
+        if result.lines:
+            # The gas never carried the line: take it off the sensor that did, not the gas.
+            readings = line_free_pair(*readings, record.dt, result.lines, (tau1, tau2))
     else:
         tau1, tau2 = args.tau1, args.tau2
     if args.reconstruction != "difference":
-        return _run_kalman(record, args, tau1, tau2)
-    return _run_difference(record, args, tau1, tau2)
+        return _run_kalman(record, args, tau1, tau2, readings)
+    return _run_difference(record, args, tau1, tau2, readings)
 
 
-def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
+def _run_difference(
+    record: Record,
+    args: argparse.Namespace,
+    tau1: float,
+    tau2: float,
+    readings: tuple[NDArray[np.float64], NDArray[np.float64]],
+) -> int:
     """``reconstruct --reconstruction difference``: Eq. (7) and the combination.
 
     Without a post-filter the gas's variance (the readings' white noise through Eq. 7,
-    :func:`~tcomp_core.reconstruct.gas_noise_variance`) is written with it.
+    :func:`~tcomp_core.reconstruct.gas_noise_variance`) is written with it. ``readings`` are
+    tc1 and tc2 as reconstructed from (without the lines only one sensor carried).
     """
     import numpy as np
 
@@ -145,15 +157,14 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
     from ..reconstruct import gas_noise_variance, noise_gain, reconstruct
 
     recon = reconstruct(
-        record.tc1,
-        record.tc2,
+        *readings,
         record.dt,
         tau1,
         tau2,
         phi=(
             args.phi
             if args.phi is not None
-            else phi_from_data(record.tc1, record.tc2, record.dt, taus=(tau1, tau2))
+            else phi_from_data(*readings, record.dt, taus=(tau1, tau2))
         ),
         combine=args.combine,
         postfilter_hz=args.postfilter_hz,
@@ -163,12 +174,10 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
     poles = math.exp(-record.dt / tau1), math.exp(-record.dt / tau2)
     variance = None
     if args.postfilter_hz is None:  # white noise through Eq. 7 alone: its variance is known
-        noise1, noise2 = model_noise(record.tc1, record.tc2, record.dt, tau1, tau2)
+        noise1, noise2 = model_noise(*readings, record.dt, tau1, tau2)
         spread = gas_noise_variance(*poles, recon.weight1, noise1.sigma, noise2.sigma)
         # What the first-order model does not explain, as the smoother's std holds it.
-        misfit = first_order_misfit(
-            record.tc1, record.tc2, record.dt, tau1, tau2, noise1.sigma, noise2.sigma
-        )
+        misfit = first_order_misfit(*readings, record.dt, tau1, tau2, noise1.sigma, noise2.sigma)
         variance = np.full(count, spread + misfit.excess_c**2)
         gas_std = math.sqrt(max(float(np.nanvar(recon.gas)) - spread, 0.0))
         if misfit.material(gas_std):
@@ -200,8 +209,17 @@ def _run_difference(record: Record, args: argparse.Namespace, tau1: float, tau2:
     return 0
 
 
-def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: float) -> int:
-    """``reconstruct --reconstruction kalman[-causal]``; Eq. (7) when no model can be used."""
+def _run_kalman(
+    record: Record,
+    args: argparse.Namespace,
+    tau1: float,
+    tau2: float,
+    readings: tuple[NDArray[np.float64], NDArray[np.float64]],
+) -> int:
+    """``reconstruct --reconstruction kalman[-causal]``; Eq. (7) when no model can be used.
+
+    ``readings`` as for :func:`_run_difference`.
+    """
     import numpy as np
 
     from ..errors import EstimationError
@@ -211,12 +229,10 @@ def _run_kalman(record: Record, args: argparse.Namespace, tau1: float, tau2: flo
     _check_difference_options(args)
     causal = args.reconstruction == "kalman-causal"
     try:
-        fused = fuse(
-            record.tc1, record.tc2, record.dt, tau1, tau2, model=args.signal_model, causal=causal
-        )
+        fused = fuse(*readings, record.dt, tau1, tau2, model=args.signal_model, causal=causal)
     except EstimationError as exc:
         print(f"tcomp reconstruct: warning: {exc}; the gas is Eq. (7)'s", file=sys.stderr)
-        return _run_difference(record, args, tau1, tau2)
+        return _run_difference(record, args, tau1, tau2, readings)
     if fused.note:
         print(f"tcomp reconstruct: note: {fused.note}", file=sys.stderr)
     _warn_misfit(record, fused.misfit_warning, "tcomp diagnose names the missing physics")

@@ -15,19 +15,14 @@ from collections.abc import Mapping
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
+from ..lines import foreign_lines, segment_length
 from .base import Effect, Evidence, FitContext, ParamSpec
 
 __all__ = ["HARMONICS", "Interference", "find_line", "interference_line"]
 
 #: Harmonics fitted (odd: a rectifier's and a transformer's pick-up).
 HARMONICS = (1, 3, 5)
-#: A line's power over the median of its neighbourhood (±:data:`LINE_NEIGHBOURS` bins), and
-#: its excess over what the other channel and the first-order relation predict.
-LINE_PROMINENCE = 20.0
-LINE_NEIGHBOURS = 12
-LINE_EXCESS = 4.0
 
 
 def interference_line(
@@ -46,12 +41,6 @@ def interference_line(
         line += params[f"interference_a{h}"] * np.cos(h * phase)
         line += params[f"interference_b{h}"] * np.sin(h * phase)
     return line
-
-
-def _local_median(power: NDArray[np.float64]) -> NDArray[np.float64]:
-    padded = np.pad(power, LINE_NEIGHBOURS, mode="reflect")
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * LINE_NEIGHBOURS + 1)
-    return np.median(windows, axis=1)
 
 
 def find_line(
@@ -78,33 +67,12 @@ def find_line(
     Returns
     -------
     (frequency_hz, channel, amplitude_c) or None
+        From :func:`tcomp_core.lines.foreign_lines`.
     """
-    fs = 1.0 / dt
-    nperseg = int(min(tc1.size, 2 ** math.ceil(math.log2(fs))))  # ~1 Hz bins
-    freq, p1 = signal.welch(tc1, fs=fs, nperseg=nperseg)
-    _, p2 = signal.welch(tc2, fs=fs, nperseg=nperseg)
-    omega = 2.0 * np.pi * freq
-    expected = (1.0 + (omega * tau1) ** 2) / (1.0 + (omega * tau2) ** 2)  # |G2/G1|²
-    excess = np.log(np.maximum(p2, 1e-300) / np.maximum(p1 * expected, 1e-300))
-    best: tuple[float, int, float] | None = None
-    for number, power, sign in ((1, p1, -1.0), (2, p2, 1.0)):
-        if channel is not None and number != channel:
-            continue
-        prominence = power / np.maximum(_local_median(power), 1e-300)
-        found, _ = signal.find_peaks(power)
-        for peak in found:
-            if peak < 2 or prominence[peak] < LINE_PROMINENCE:
-                continue
-            if sign * excess[peak] < math.log(LINE_EXCESS):
-                continue  # the other channel explains it: part of the gas signal
-            amplitude = math.sqrt(2.0 * float(power[peak - 1 : peak + 2].sum()) * fs / nperseg)
-            if best is None or amplitude > best[2]:
-                # Refine the frequency between bins (parabola through the log powers).
-                left, centre, right = np.log(power[peak - 1 : peak + 2])
-                curvature = left - 2.0 * centre + right
-                shift = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
-                best = (float(freq[peak] + shift * (freq[1] - freq[0])), number, amplitude)
-    return best
+    lines = foreign_lines(tc1, tc2, dt, (tau1, tau2), channel=channel)
+    if not lines:
+        return None
+    return lines[0].frequency_hz, lines[0].channel, lines[0].amplitude_c
 
 
 def _refine(reading: NDArray[np.float64], context: FitContext, f0: float) -> float:
@@ -114,10 +82,13 @@ def _refine(reading: NDArray[np.float64], context: FitContext, f0: float) -> flo
     fraction of 1/T: the periodogram of the whole record on a grid 20 times finer than 1/T.
     """
     centred = reading - reading.mean()
-    grid = f0 + np.linspace(-1.0, 1.0, 2 * 20 + 1) * max(1.0, 2.0 / context.duration_s)
+    width = 1.0 / (segment_length(reading.size, context.dt) * context.dt)  # a Welch bin, Hz
+    step = max(1.0, 2.0 / context.duration_s) / 20.0
+    count = math.ceil(max(width, 20.0 * step) / step)
+    grid = f0 + step * np.arange(-count, count + 1)
     grid = grid[grid > 0.0]
-    phases = np.exp(-2j * np.pi * np.outer(grid, context.time))
-    return float(grid[int(np.argmax(np.abs(phases @ centred)))])
+    power = [abs(np.exp(-2j * np.pi * f * context.time) @ centred) for f in grid]
+    return float(grid[int(np.argmax(power))])
 
 
 class Interference(Effect):

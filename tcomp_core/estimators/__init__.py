@@ -25,7 +25,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..choices import DEFAULT_METHOD, METHODS, PAPER_METHODS, Method
+from ..errors import TcompError
 from ..filters import prefilter
+from ..lines import ForeignLine, foreign_lines, notch
 from ..validation import check_excitation, check_pair, check_sample_interval
 from .beta import beta_gtls, beta_ls, beta_noise_covariance, beta_tls, estimate_beta_from_scatter
 from .gamma import gamma_ls, gamma_tls
@@ -71,6 +73,7 @@ def estimate(
     prefilter_hz: float | None = None,
     names: tuple[str, str] = ("tc1", "tc2"),
     start: tuple[float, float] | None = None,
+    reject_lines: bool | None = None,
 ) -> Estimate:
     """Estimate the time constants of two thermocouples from their signals alone.
 
@@ -100,6 +103,14 @@ def estimate(
     start : (float, float), optional
         τ1, τ2 (s) to start ``ml-eiv``'s search from (a warm start, e.g. the previous
         window's); ignored by the other methods, which are not iterative.
+    reject_lines : bool, optional
+        Look for spectral lines one sensor carries and the other does not (mains pick-up,
+        :func:`tcomp_core.lines.foreign_lines`) and, where there are any, estimate again with
+        them notched from both signals: a common filter leaves the sensors' relation intact,
+        while the line would bend τ to explain it. The lines found are in ``.lines``. By
+        default ``ml-eiv`` looks and the paper's methods do not (they reproduce the paper,
+        and their τ, biased without a pre-filter at high rates, would call the gas's own
+        lines foreign).
 
     Returns
     -------
@@ -137,11 +148,39 @@ def estimate(
     if prefilter_hz is not None:
         first = prefilter(first, dt, prefilter_hz)
         second = prefilter(second, dt, prefilter_hz)
-    result = _dispatch(first, second, dt, method, phi, alpha, start)
+    if reject_lines is None:
+        reject_lines = method == "ml-eiv"
+    ratio = phi  # the closure below needs it bound as a float
+
+    def fit(a: NDArray[np.float64], b: NDArray[np.float64], warm: tuple[float, float] | None):
+        return _dispatch(a, b, dt, method, ratio, alpha, warm)
+
+    def refit(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, float]:
+        found = fit(a, b, start)
+        return found.tau1, found.tau2
+
+    try:
+        result: Estimate | None = fit(first, second, start)
+    except TcompError as exc:
+        if not reject_lines:
+            raise
+        # A line can throw the fit to the edge of its range: look for one before refusing.
+        result, refused = None, exc
+    lines: tuple[ForeignLine, ...] = ()
+    if reject_lines:
+        taus = None if result is None else (result.tau1, result.tau2)
+        lines = tuple(foreign_lines(first, second, dt, taus, refit))
+    if lines:
+        frequencies = [line.frequency_hz for line in lines]
+        first, second = notch(first, dt, frequencies), notch(second, dt, frequencies)
+        warm = start if result is None else (result.tau1, result.tau2)
+        result = replace(fit(first, second, warm), lines=lines)
+    if result is None:
+        raise refused
     if measured:
         phi = phi_from_data(*raw, dt, taus=(result.tau1, result.tau2))
         result = _dispatch(first, second, dt, method, phi, alpha, (result.tau1, result.tau2))
-        result = replace(result, params={**result.params, "phi_estimated": 1.0})
+        result = replace(result, params={**result.params, "phi_estimated": 1.0}, lines=lines)
     if prefilter_hz is None:
         return result
     return replace(result, prefilter_hz=float(prefilter_hz))

@@ -6,6 +6,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ..lines import ForeignLine
 from ..models import pole_to_tau
 
 __all__ = ["Estimate", "estimate_from_poles"]
@@ -39,6 +40,10 @@ class Estimate:
         Noise variance ratio σ1²/σ2² assumed (β-GTLS only).
     prefilter_hz : float or None
         Bandwidth of the zero-phase pre-filter applied before estimation.
+    lines : tuple of ForeignLine
+        Spectral lines one sensor carried and the other did not (mains pick-up), notched from
+        both signals before the estimate (:func:`tcomp_core.lines.foreign_lines`); empty when
+        there were none or the estimate did not look.
     """
 
     method: str
@@ -52,6 +57,14 @@ class Estimate:
     params: dict[str, float] = field(default_factory=dict)
     phi: float | None = None
     prefilter_hz: float | None = None
+    lines: tuple[ForeignLine, ...] = ()
+
+    def __post_init__(self) -> None:
+        # From to_dict's JSON the lines come back as a list of dicts.
+        lines = tuple(
+            line if isinstance(line, ForeignLine) else ForeignLine(**line) for line in self.lines
+        )
+        object.__setattr__(self, "lines", lines)
 
     @property
     def alpha(self) -> float:

@@ -1,0 +1,301 @@
+"""Foreign spectral lines: a line one sensor carries that the other does not (mains pick-up).
+
+A thermocouple's millivolts pick up the mains (50 or 60 Hz) and its odd harmonics through the
+extension cable and the amplifier's input. The gas does not carry the line, so the first-order
+relation between the sensors (Eq. 8) does not hold at its frequency, and an estimator bends τ to
+explain it: a line a fifth of the signal's swing on one channel put ml-eiv's τ1 41 % off on an
+engine-pulse record of the detailed simulator, and the inverse amplifies the line by |1 + jωτ|
+into the gas.
+
+Two facts make the line harmless to τ:
+
+* the same linear filter on both signals leaves the relation unchanged (the paper's argument
+  for its pre-filter, Sec. IV B), so a notch common to both channels at the line removes it
+  from the fit and biases nothing, whether the line was foreign or the gas's own;
+* the gas's own lines appear in tc2 as in tc1 times |G2/G1|; a foreign one does not.
+
+:func:`foreign_lines` finds the lines in either channel's spectrum that stand out of their
+neighbourhood and that the other channel does not explain with the τ given, then confirms them
+with a τ fitted on both channels with every such candidate notched. :func:`notch` takes lines
+off a signal (zero phase); :func:`line_free_pair` takes the foreign lines off the channel that
+carries them, for a reconstruction of the gas.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+__all__ = [
+    "LINE_EXCESS",
+    "LINE_PROMINENCE",
+    "NOTCH_Q",
+    "ForeignLine",
+    "foreign_lines",
+    "line_free_pair",
+    "notch",
+    "segment_length",
+]
+
+#: A line's power over the median of its neighbourhood (±:data:`LINE_NEIGHBOURS` bins), and
+#: its excess over what the other channel and the first-order relation predict.
+LINE_PROMINENCE = 20.0
+LINE_NEIGHBOURS = 12
+LINE_EXCESS = 4.0
+#: Welch segments averaged at least.
+MIN_SEGMENTS = 8
+#: Quality factor of the notches: -3 dB over f/Q (1.7 Hz at 50 Hz), a line and its drift.
+NOTCH_Q = 30.0
+#: Notches kept below this share of the sample rate (a notch at Nyquist has no width).
+NOTCH_LIMIT = 0.45
+#: Candidate lines notched for the refit at most (the most prominent): the cost of a notch
+#: each, where the gas is a sum of lines (a multisine) that notching all would leave bare.
+MAX_CANDIDATES = 24
+
+
+@dataclass(frozen=True)
+class ForeignLine:
+    """A spectral line one channel carries beyond what the other explains.
+
+    Attributes
+    ----------
+    frequency_hz : float
+        Centre of the line, Hz (Welch bin refined by a parabola through the log powers).
+    channel : int
+        1 or 2: the sensor that carries it.
+    amplitude_c : float
+        Amplitude of the line, degrees C (from the power in its three bins).
+    """
+
+    frequency_hz: float
+    channel: int
+    amplitude_c: float
+
+
+@dataclass(frozen=True)
+class _Spectra:
+    freq: NDArray[np.float64]
+    power: tuple[NDArray[np.float64], NDArray[np.float64]]
+    fs: float
+    nperseg: int
+
+
+def segment_length(samples: int, dt: float) -> int:
+    """Samples per Welch segment: ~1 Hz bins, or coarser to average :data:`MIN_SEGMENTS`.
+
+    A single segment's periodogram has noise bins 20 times their neighbours' median often
+    enough to call noise a line; half-overlapping segments, averaged, do not.
+    """
+    longest = 2.0 * samples / (MIN_SEGMENTS + 1)
+    finest = 2 ** math.ceil(math.log2(1.0 / dt))
+    return int(min(finest, 2 ** math.floor(math.log2(max(longest, 8.0)))))
+
+
+def _spectra(tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float) -> _Spectra:
+    fs = 1.0 / dt
+    nperseg = segment_length(tc1.size, dt)
+    freq, p1 = signal.welch(tc1, fs=fs, nperseg=nperseg)
+    _, p2 = signal.welch(tc2, fs=fs, nperseg=nperseg)
+    return _Spectra(freq, (p1, p2), fs, nperseg)
+
+
+def _local_median(power: NDArray[np.float64]) -> NDArray[np.float64]:
+    padded = np.pad(power, LINE_NEIGHBOURS, mode="reflect")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * LINE_NEIGHBOURS + 1)
+    return np.median(windows, axis=1)
+
+
+def _peaks(power: NDArray[np.float64]) -> NDArray[np.intp]:
+    """Bins (from the third on) where ``power`` peaks at :data:`LINE_PROMINENCE` × its median."""
+    prominence = power / np.maximum(_local_median(power), 1e-300)
+    found, _ = signal.find_peaks(power)
+    return found[(found >= 2) & (prominence[found] >= LINE_PROMINENCE)]
+
+
+def _excess(spectra: _Spectra, tau1: float, tau2: float) -> NDArray[np.float64]:
+    """Log of tc2's power over tc1's times |G2/G1|², per bin: 0 where the gas explains both.
+
+    Shape (2, bins): with the continuous sensors' ratio (1 + (ωτ1)²)/(1 + (ωτ2)²), and with
+    that of their zero-order-hold discretisations (Eq. 5), which differ near the Nyquist
+    frequency; a line must stand out under both to be foreign (a gas held between samples
+    follows the second, physics sampled without an anti-alias filter neither exactly).
+    """
+    omega = 2.0 * np.pi * spectra.freq
+    continuous = (1.0 + (omega * tau1) ** 2) / (1.0 + (omega * tau2) ** 2)
+    dt = 1.0 / spectra.fs
+    rotation = np.exp(-1j * omega * dt)
+    a1, a2 = math.exp(-dt / tau1), math.exp(-dt / tau2)
+    held = ((1.0 - a2) / (1.0 - a1)) ** 2 * np.abs(1.0 - a1 * rotation) ** 2
+    held /= np.abs(1.0 - a2 * rotation) ** 2
+    p1, p2 = spectra.power
+    ratio = np.maximum(p2, 1e-300) / np.maximum(p1, 1e-300)
+    return np.log(ratio / np.stack([continuous, held]))
+
+
+def _line(spectra: _Spectra, peak: int, channel: int) -> ForeignLine:
+    power = spectra.power[channel - 1]
+    amplitude = math.sqrt(
+        2.0 * float(power[peak - 1 : peak + 2].sum()) * spectra.fs / spectra.nperseg
+    )
+    left, centre, right = np.log(np.maximum(power[peak - 1 : peak + 2], 1e-300))
+    curvature = left - 2.0 * centre + right
+    shift = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
+    step = float(spectra.freq[1] - spectra.freq[0])
+    return ForeignLine(float(spectra.freq[peak] + shift * step), channel, amplitude)
+
+
+def _foreign(
+    spectra: _Spectra, tau1: float, tau2: float, channel: int | None = None
+) -> list[ForeignLine]:
+    excess = _excess(spectra, tau1, tau2)
+    lines = []
+    for number, sign in ((1, -1.0), (2, 1.0)):
+        if channel is not None and number != channel:
+            continue
+        for peak in _peaks(spectra.power[number - 1]):
+            if np.all(sign * excess[:, peak] >= math.log(LINE_EXCESS)):
+                lines.append(_line(spectra, int(peak), number))
+    return sorted(lines, key=lambda line: -line.amplitude_c)
+
+
+def foreign_lines(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    taus: tuple[float, float] | None,
+    refit: Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[float, float]] | None = None,
+    channel: int | None = None,
+) -> list[ForeignLine]:
+    """Lines one channel carries that the other does not explain, strongest first.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C.
+    dt : float
+        Sample interval, s.
+    taus : (float, float) or None
+        τ1, τ2 (s) that predict one channel's lines from the other's; None when the readings
+        gave none (a fit the line threw to the edge of its range): ``refit`` alone judges.
+    refit : callable, optional
+        τ1, τ2 of a pair of signals. When given, it is called on the readings with every
+        candidate line notched from both (the lines cannot bend that τ), and a line is foreign
+        only if it is so with both ``taus`` and the refit's: a line strong enough to bend
+        ``taus`` stays foreign with them, and the gas's own lines (a multisine's, whose
+        notching leaves the refit little to go on) stay the gas's with ``taus``. A refit that
+        raises ``TcompError`` leaves ``taus`` alone to judge.
+    channel : int, optional
+        Look on this channel only (1 or 2).
+
+    Returns
+    -------
+    list of ForeignLine
+        Empty when every line is the gas's (or there is none).
+
+    Raises
+    ------
+    ValueError
+        If neither ``taus`` nor ``refit`` is given.
+    """
+    from .errors import TcompError
+
+    if taus is None and refit is None:
+        raise ValueError("foreign_lines needs taus or a refit to judge the lines with")
+    spectra = _spectra(tc1, tc2, dt)
+    found = None if taus is None else _foreign(spectra, *taus, channel)
+    if refit is None or found == []:
+        return found or []
+    frequencies = _strongest_candidates(spectra)
+    if not frequencies:
+        return []
+    try:
+        refitted = refit(notch(tc1, dt, frequencies), notch(tc2, dt, frequencies))
+    except TcompError:
+        return found or []
+    confirmed = _foreign(spectra, *refitted, channel)
+    if found is None:
+        return confirmed
+    kept = {(line.channel, line.frequency_hz) for line in confirmed}
+    return [line for line in found if (line.channel, line.frequency_hz) in kept]
+
+
+def _strongest_candidates(spectra: _Spectra) -> list[float]:
+    """Frequencies (Hz) of the :data:`MAX_CANDIDATES` most prominent peaks of either channel."""
+    ranked: dict[int, float] = {}
+    for power in spectra.power:
+        prominence = power / np.maximum(_local_median(power), 1e-300)
+        for peak in _peaks(power):
+            ranked[int(peak)] = max(ranked.get(int(peak), 0.0), float(prominence[peak]))
+    best = sorted(ranked, key=lambda peak: -ranked[peak])[:MAX_CANDIDATES]
+    return [float(spectra.freq[peak]) for peak in sorted(best)]
+
+
+def notch(
+    values: NDArray[np.float64], dt: float, frequencies: Sequence[float]
+) -> NDArray[np.float64]:
+    """``values`` with a zero-phase notch (Q = :data:`NOTCH_Q`) at each of ``frequencies`` (Hz).
+
+    Frequencies at or beyond :data:`NOTCH_LIMIT` of the sample rate are left alone, as is a
+    signal too short for the filter's edge padding.
+    """
+    fs = 1.0 / dt
+    out = np.asarray(values, dtype=np.float64)
+    for frequency in frequencies:
+        if not 0.0 < frequency < NOTCH_LIMIT * fs:
+            continue
+        b, a = signal.iirnotch(frequency, NOTCH_Q, fs=fs)
+        if out.size <= 3 * max(a.size, b.size):
+            continue
+        out = signal.filtfilt(b, a, out)
+    return out
+
+
+def line_free_pair(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    lines: Sequence[ForeignLine],
+    taus: tuple[float, float],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The readings with each foreign line taken off the channel that carries it.
+
+    Within each line's band (what :func:`notch` removes) the carrying channel keeps what the
+    other channel predicts through the sensors' relation, G_c/G_o = (1 + jωτ_o)/(1 + jωτ_c)
+    at the line: the gas's own content there stays, and the two readings stay consistent (a
+    bare notch on one channel would leave the other's gas content at the line unmatched).
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C.
+    dt : float
+        Sample interval, s.
+    lines : sequence of ForeignLine
+        From :func:`foreign_lines`.
+    taus : (float, float)
+        τ1, τ2 of the sensors, s.
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        tc1 and tc2 without the lines, degrees C, shape (N,) each.
+    """
+    readings = [np.asarray(tc1, dtype=np.float64), np.asarray(tc2, dtype=np.float64)]
+    for line in lines:
+        carrier, other = line.channel - 1, 2 - line.channel
+        omega = 2.0 * np.pi * line.frequency_hz
+        gain = (1.0 + 1j * omega * taus[other]) / (1.0 + 1j * omega * taus[carrier])
+        carried = _band(readings[carrier], dt, line.frequency_hz)
+        predicted = np.real(gain * signal.hilbert(_band(readings[other], dt, line.frequency_hz)))
+        readings[carrier] = readings[carrier] - (carried - predicted)
+    return readings[0], readings[1]
+
+
+def _band(values: NDArray[np.float64], dt: float, frequency: float) -> NDArray[np.float64]:
+    """The part of ``values`` a notch at ``frequency`` takes off (zero phase)."""
+    return values - notch(values, dt, [frequency])
