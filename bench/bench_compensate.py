@@ -53,13 +53,14 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from tcomp_core.compensation import compensate, default_taus, output_model_from_diagnosis
+from tcomp_core.compensation import compensate, default_estimate, output_model_from_diagnosis
 from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.effects.chain import fractional_shift
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
+from tcomp_core.lines import line_free_pair
 from tcomp_core.simulate_effects import simulate_effect
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -117,7 +118,8 @@ def compare(
     diagnosis = diagnose(record)
     # As fit_output_model builds it for reconstruct and process: the default path's τ where
     # the model applies nothing.
-    plain_taus = default_taus(record)
+    plain = default_estimate(record)
+    plain_taus = None if plain is None else (plain.tau1, plain.tau2)
     output = output_model_from_diagnosis(
         diagnosis, origin_s=float(record.time[0]), first_order_taus=plain_taus
     )
@@ -162,8 +164,11 @@ def compare(
         # nan where that path refuses the record.
         row["tau_default"] = list(plain_taus) if plain_taus else [math.nan, math.nan]
         row["smoother_default"] = row["smoother_default_full"] = math.nan
-        if plain_taus is not None:
-            gas = fuse(record.tc1, record.tc2, record.dt, *plain_taus).gas
+        if plain is not None and plain_taus is not None:
+            row["default_lines"] = [[line.frequency_hz, line.channel] for line in plain.lines]
+            # As tcomp reconstruct: the lines one sensor carries are taken off it first.
+            readings = line_free_pair(record.tc1, record.tc2, record.dt, plain.lines, plain_taus)
+            gas = fuse(*readings, record.dt, *plain_taus).gas
             row["smoother_default"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]
             row["smoother_default_full"] = scores(record, gas, None, held)[0]
     row["seconds"] = time.perf_counter() - started

@@ -5,6 +5,7 @@ of these runs when written: the default path's τ1 bias within ±0.15 %, std ≤
 20 kHz on all four signals; β-GTLS without a pre-filter +9 to +30 % (5 kHz, 10 s).
 """
 
+import json
 import math
 
 import numpy as np
@@ -142,3 +143,28 @@ def test_model_noise_is_symmetric_in_the_sensors():
     backward = model_noise(pair.tc2, pair.tc1, pair.dt, pair.tau2, pair.tau1)
     assert math.isclose(forward[0].sigma, backward[1].sigma, rel_tol=1e-9)
     assert math.isclose(forward[1].sigma, backward[0].sigma, rel_tol=1e-9)
+
+
+def test_the_command_line_measures_the_noise_ratio_by_default(tmp_path, capsys):
+    # tc2 three times noisier than tc1 (φ = 0.1): φ = 1 assumed moves τ1 by 3.8 %.
+    pair = simulate_pair("multisine", dt=2e-4, duration=4.0, noise_percent=3.0, phi=0.1, seed=4)
+    data = tmp_path / "unequal.csv"
+    np.savetxt(
+        data,
+        np.column_stack([pair.time, pair.tc1, pair.tc2]),
+        delimiter=",",
+        header="time,tc1,tc2",
+        comments="",
+        fmt="%.9g",
+    )
+    from tcomp_core.cli import main
+
+    found = {}
+    for name, extra in (("default", []), ("equal", ["--phi", "1"])):
+        capsys.readouterr()
+        assert main(["estimate", str(data), "--json", *extra]) == 0
+        found[name] = json.loads(capsys.readouterr().out)
+    default, equal = found["default"], found["equal"]
+    assert default["params"]["phi_estimated"] == 1.0
+    assert abs(default["tau1"] / pair.tau1 - 1.0) < 0.015
+    assert abs(equal["tau1"] / pair.tau1 - 1.0) > 0.03

@@ -142,9 +142,10 @@ def add_estimator_arguments(parser: argparse.ArgumentParser, allow_all: bool = F
     parser.add_argument(
         "--phi",
         type=phi_or_auto,
-        default=1.0,
-        help="noise variance ratio sigma1^2/sigma2^2 for beta-gtls and ml-eiv (default 1); "
-        "'auto' measures it from the spectra, less the gas signal both sensors share (the model)",
+        default=None,
+        help="noise variance ratio sigma1^2/sigma2^2 for beta-gtls and ml-eiv; 'auto' (the "
+        "default) measures it from the spectra, less the gas signal both sensors share (the "
+        "model)",
     )
     parser.add_argument(
         "--alpha",

@@ -164,7 +164,7 @@ def _run_difference(
         phi=(
             args.phi
             if args.phi is not None
-            else phi_from_data(*readings, record.dt, taus=(tau1, tau2))
+            else phi_from_data(*readings, record.dt, taus=(tau1, tau2), unmeasurable=1.0)
         ),
         combine=args.combine,
         postfilter_hz=args.postfilter_hz,
@@ -297,7 +297,11 @@ def _run_compensated(
     count = record.tc1.size - 1
     if args.reconstruction == "difference":
         tc1, tc2 = equivalent_readings(model, record.time, record.tc1, record.tc2, record.dt)
-        phi = args.phi if args.phi is not None else phi_from_data(tc1, tc2, record.dt)
+        phi = (
+            args.phi
+            if args.phi is not None
+            else phi_from_data(tc1, tc2, record.dt, unmeasurable=1.0)
+        )
 
         def eq7(first: NDArray[np.float64], second: NDArray[np.float64]) -> Reconstruction:
             return reconstruct(

@@ -56,12 +56,14 @@ if TYPE_CHECKING:
     from ..diagnose import Diagnosis
     from ..diagnose.identification import Identification
     from ..diagnose.result import ModelFit
+    from ..estimators import Estimate
     from ..io import Record
 
 __all__ = [
     "FIRST_ORDER",
     "OutputModel",
     "Piece",
+    "default_estimate",
     "default_taus",
     "fit_output_model",
     "output_model_from_diagnosis",
@@ -482,12 +484,21 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
     )
 
 
-def default_taus(record: Record) -> tuple[float, float] | None:
-    """τ1, τ2 of the default first-order path on ``record`` (ml-eiv), s; None if it refuses."""
+def default_estimate(record: Record) -> Estimate | None:
+    """The default first-order path's estimate on ``record``; None if it refuses.
+
+    As ``tcomp estimate`` gives it without options: ml-eiv with the noise ratio φ measured
+    and the lines one sensor carries alone notched.
+    """
     from ..estimators import estimate
 
     try:
-        found = estimate(record.tc1, record.tc2, record.dt)
+        return estimate(record.tc1, record.tc2, record.dt, phi=None)
     except (EstimationError, ValueError):
         return None
-    return float(found.tau1), float(found.tau2)
+
+
+def default_taus(record: Record) -> tuple[float, float] | None:
+    """τ1, τ2 of the default first-order path on ``record`` (ml-eiv), s; None if it refuses."""
+    found = default_estimate(record)
+    return None if found is None else (float(found.tau1), float(found.tau2))

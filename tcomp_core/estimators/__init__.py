@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..choices import DEFAULT_METHOD, METHODS, PAPER_METHODS, Method
-from ..errors import TcompError
+from ..errors import DataError, TcompError
 from ..filters import prefilter
 from ..lines import ForeignLine, foreign_lines, notch
 from ..validation import check_excitation, check_pair, check_sample_interval
@@ -140,11 +140,16 @@ def estimate(
             f"phi applies to {' and '.join(PHI_METHODS)} only; "
             f"{method} assumes equal noise variances"
         )
-    measured = phi is None
     raw = (first, second)
+    measured = phi is None
     if phi is None:
         # Before the pre-filter, which would remove the band the noise is measured in.
-        phi = phi_from_data(first, second, dt)
+        try:
+            phi = phi_from_data(first, second, dt)
+        except DataError:
+            # One channel shows no noise at all (synthetic or heavily quantised data): no
+            # ratio to measure, and equal weights are what the data allow.
+            phi, measured = 1.0, False
     if prefilter_hz is not None:
         first = prefilter(first, dt, prefilter_hz)
         second = prefilter(second, dt, prefilter_hz)
@@ -173,12 +178,17 @@ def estimate(
     if lines:
         frequencies = [line.frequency_hz for line in lines]
         first, second = notch(first, dt, frequencies), notch(second, dt, frequencies)
+        raw = notch(raw[0], dt, frequencies), notch(raw[1], dt, frequencies)  # for φ's noise
         warm = start if result is None else (result.tau1, result.tau2)
         result = replace(fit(first, second, warm), lines=lines)
     if result is None:
         raise refused
     if measured:
-        phi = phi_from_data(*raw, dt, taus=(result.tau1, result.tau2))
+        try:
+            phi = phi_from_data(*raw, dt, taus=(result.tau1, result.tau2))
+        except DataError:  # the model leaves no noise on one channel: keep the first φ
+            measured = False
+    if measured:
         result = _dispatch(first, second, dt, method, phi, alpha, (result.tau1, result.tau2))
         result = replace(result, params={**result.params, "phi_estimated": 1.0}, lines=lines)
     if prefilter_hz is None:

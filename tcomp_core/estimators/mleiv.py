@@ -104,6 +104,7 @@ def phi_from_data(
     tc2: NDArray[np.float64],
     dt: float,
     taus: tuple[float, float] | None = None,
+    unmeasurable: float | None = None,
 ) -> float:
     """Noise variance ratio φ = σ1²/σ2² measured from the top of the two spectra (or the model).
 
@@ -118,6 +119,9 @@ def phi_from_data(
         (:func:`tcomp_core.noise.model_noise`), which removes the gas signal the two spectra
         share; without them, from a low quantile of each spectrum alone
         (:func:`tcomp_core.noise.estimate_noise`), which sharp edges in the gas can fool.
+    unmeasurable : float, optional
+        φ to return when one signal shows noise and the other none (synthetic or heavily
+        quantised data); None raises.
 
     Returns
     -------
@@ -137,6 +141,8 @@ def phi_from_data(
     if sigma1 == 0.0 and sigma2 == 0.0:
         return 1.0
     if not (sigma1 > 0.0 and sigma2 > 0.0):
+        if unmeasurable is not None:
+            return unmeasurable
         raise DataError(
             f"cannot measure the noise ratio: noise σ1 = {sigma1:.3g}, σ2 = {sigma2:.3g}; "
             "pass phi explicitly"
