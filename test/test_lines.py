@@ -151,3 +151,26 @@ def test_reconstruct_says_which_sensor_carries_the_line_and_keeps_it_out_of_the_
         errors[name] = float(line.split("=")[1].split("%")[0])
     assert errors["default"] < 0.5 * errors["given-tau"]
     assert math.isfinite(errors["default"])
+
+
+def test_the_node_s_engine_reports_the_line_and_keeps_it_out_of_tau():
+    from tcomp_core.online import OnlineCompensator, OnlineConfig
+    from tcomp_core.online.health import engine_values
+
+    pair = _pair()
+    tc2 = pair.tc2 + _mains(pair.time, 0.2 * float(np.std(pair.gas)))
+    engine = OnlineCompensator(OnlineConfig(window_s=2.0, reconstruction="difference"))
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+    status = None
+    for start in range(0, stamps.size, 1500):
+        part = slice(start, start + 1500)
+        engine.add_pairs(stamps[part], pair.tc1[part], tc2[part])
+        status = engine.update_estimate() or status
+    assert status is not None and status.accepted
+    values = engine_values(engine, status)
+    assert values["foreign_lines"].startswith("tc2: ")
+    reported = [float(f) for f in re.findall(r"([\d.]+) Hz", values["foreign_lines"])]
+    assert any(abs(f - 50.0) < 0.5 for f in reported)
+    assert any(abs(f - 150.0) < 0.5 for f in reported)
+    assert engine.tau[0] == pytest.approx(pair.tau1, rel=0.03)
+    assert engine.tau[1] == pytest.approx(pair.tau2, rel=0.03)

@@ -24,6 +24,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
 
+from ..lines import ForeignLine
 from .compensator import OnlineCompensator
 from .config import EstimateStatus
 from .pairing import INPUT_NAMES, PairCounters
@@ -140,7 +141,9 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
         the window restarted), ``fit_error_pct``, ``noise_floor_pct``,
         ``model_error_pct``, ``condition``, ``latest_tau1_s``, ``latest_tau2_s``, the 95 %
         intervals ``tau{1,2}_ci_{low,high}_s`` (nan for estimators without them),
-        ``estimate_accepted`` and ``last_reason``.
+        ``foreign_lines`` (spectral lines one sensor carried and the other did not, notched
+        from the latest estimate: ``tc2: 50 Hz, 150 Hz``, '' for none; mains pick-up,
+        :func:`tcomp_core.lines.foreign_lines`), ``estimate_accepted`` and ``last_reason``.
     """
     config = engine.config
     tau = engine.published_tau
@@ -176,10 +179,20 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
             for i in (1, 2)
             for end in ("low", "high")
         },
+        "foreign_lines": _lines_value(estimate.lines if estimate else ()),
         **output_values(engine),
         "estimate_accepted": str(bool(status and status.accepted)).lower(),
         "last_reason": status.reason if status else "",
     }
+
+
+def _lines_value(lines: Sequence[ForeignLine]) -> str:
+    parts = []
+    for channel in (1, 2):
+        mine = [f"{line.frequency_hz:.4g} Hz" for line in lines if line.channel == channel]
+        if mine:
+            parts.append(f"tc{channel}: {', '.join(mine)}")
+    return "; ".join(parts)
 
 
 @dataclass(frozen=True)
