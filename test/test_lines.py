@@ -174,3 +174,13 @@ def test_the_node_s_engine_reports_the_line_and_keeps_it_out_of_tau():
     assert any(abs(f - 150.0) < 0.5 for f in reported)
     assert engine.tau[0] == pytest.approx(pair.tau1, rel=0.03)
     assert engine.tau[1] == pytest.approx(pair.tau2, rel=0.03)
+
+
+@pytest.mark.parametrize("kind", ["sinusoid", "ramp", "multisine", "exhaust"])
+@pytest.mark.parametrize("dt", [2e-3, 2e-4])
+def test_no_line_is_foreign_on_first_order_records(kind, dt):
+    # The paper's sensors with no pick-up: every line in the spectra is the gas's (or noise).
+    for noise_percent in (1.0, 4.0):
+        for seed in (0, 1):
+            pair = simulate_pair(kind, dt=dt, duration=2.0, noise_percent=noise_percent, seed=seed)
+            assert estimate(pair.tc1, pair.tc2, dt).lines == (), (noise_percent, seed)
