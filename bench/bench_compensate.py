@@ -120,8 +120,12 @@ def compare(
     # the model applies nothing.
     plain = default_estimate(record)
     plain_taus = None if plain is None else (plain.tau1, plain.tau2)
+    lines = () if plain is None else plain.lines
     output = output_model_from_diagnosis(
-        diagnosis, origin_s=float(record.time[0]), first_order_taus=plain_taus
+        diagnosis,
+        origin_s=float(record.time[0]),
+        first_order_taus=plain_taus,
+        first_order_lines=lines,
     )
     base = diagnosis.base
     found = diagnosis.final.identification
@@ -138,7 +142,10 @@ def compare(
         # The output model as it was before the identification rule: the same fit, unchecked.
         unchecked = replace(diagnosis, final=replace(diagnosis.final, identification=None))
         ungated = output_model_from_diagnosis(
-            unchecked, origin_s=float(record.time[0]), first_order_taus=plain_taus
+            unchecked,
+            origin_s=float(record.time[0]),
+            first_order_taus=plain_taus,
+            first_order_lines=lines,
         )
         row["ungated_output"] = ungated.name()
         gas = compensate(ungated, record.time, record.tc1, record.tc2, record.dt).gas

@@ -184,3 +184,22 @@ def test_no_line_is_foreign_on_first_order_records(kind, dt):
         for seed in (0, 1):
             pair = simulate_pair(kind, dt=dt, duration=2.0, noise_percent=noise_percent, seed=seed)
             assert estimate(pair.tc1, pair.tc2, dt).lines == (), (noise_percent, seed)
+
+
+def test_the_output_model_s_gas_is_reconstructed_without_the_line():
+    from dataclasses import replace
+
+    from tcomp_core.compensation import compensate, fit_output_model
+    from tcomp_core.io import Record
+    from tcomp_core.metrics import reconstruction_error_percent
+
+    pair = _pair()
+    tc2 = pair.tc2 + _mains(pair.time, 0.2 * float(np.std(pair.gas)))
+    record = Record(time=pair.time, tc1=pair.tc1, tc2=tc2, ref=pair.gas, source="mains", dt=DT)
+    model = fit_output_model(record, ())
+    assert model.lines and {line.channel for line in model.lines} == {2}
+    errors = {}
+    for name, used in (("without", model), ("with", replace(model, lines=()))):
+        gas = compensate(used, record.time, record.tc1, record.tc2, DT).gas
+        errors[name] = reconstruction_error_percent(pair.gas[500:-500], gas[500:-500])
+    assert errors["without"] < 0.5 * errors["with"], errors

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from ..effects.chain import first_order_reading
 from ..fusion import FusionModel, FusionResult, fuse
 from ..fusion.signal_model import ModelChoice
+from ..lines import line_free_pair
 from .plan import OutputModel
 
 __all__ = ["Compensated", "compensate", "equivalent_readings", "level_shift_c"]
@@ -47,10 +48,14 @@ def equivalent_readings(
     Returns
     -------
     tuple of ndarray, shape (N,) each
-        Degrees C, tc2 on tc1's scale when a calibration is applied.
+        Degrees C, tc2 on tc1's scale when a calibration is applied, without the lines one
+        sensor carried alone (``model.lines``) unless an applied interference took its own.
     """
     first, second = model.chains(time, dt)
-    return first_order_reading(first, tc1, dt), first_order_reading(second, tc2, dt)
+    readings = first_order_reading(first, tc1, dt), first_order_reading(second, tc2, dt)
+    if not model.lines or "interference" in model.applied():
+        return readings
+    return line_free_pair(*readings, dt, model.lines, (model.tau1, model.tau2))
 
 
 @dataclass(frozen=True, kw_only=True)

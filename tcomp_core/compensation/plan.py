@@ -39,7 +39,7 @@ disagreement (the only evidence of what first order lacks), or when the 95 % ban
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -58,6 +58,7 @@ if TYPE_CHECKING:
     from ..diagnose.result import ModelFit
     from ..estimators import Estimate
     from ..io import Record
+    from ..lines import ForeignLine
 
 __all__ = [
     "FIRST_ORDER",
@@ -144,6 +145,11 @@ class OutputModel:
     identification : Identification or None
         Whether the data pin down the fit's effect parameters and its change to the gas
         (:mod:`tcomp_core.diagnose.identification`); None when not checked.
+    lines : tuple of ForeignLine
+        Spectral lines one sensor carried alone on the fitted record (mains pick-up), as the
+        default first-order path found them (:func:`tcomp_core.lines.foreign_lines`): an
+        offline reconstruction takes them off the carrying channel unless an applied
+        ``interference`` piece takes its line off itself.
     """
 
     effects: tuple[str, ...]
@@ -158,6 +164,7 @@ class OutputModel:
     notes: tuple[str, ...] = field(default=())
     at_bound: tuple[str, ...] = field(default=())
     identification: Identification | None = None
+    lines: tuple[ForeignLine, ...] = ()
 
     @property
     def tau1(self) -> float:
@@ -298,6 +305,7 @@ def output_model_from_diagnosis(
     diagnosis: Diagnosis,
     origin_s: float = 0.0,
     first_order_taus: tuple[float, float] | None = None,
+    first_order_lines: Sequence[ForeignLine] = (),
 ) -> OutputModel:
     """The output model of a diagnosis's (or fit's) final model.
 
@@ -312,6 +320,8 @@ def output_model_from_diagnosis(
         sensors' gain; :func:`fit_output_model` gives them), s: the gas falls back to them when
         the model applies nothing, or when its fit does not determine τ. Without them it falls
         back to the diagnosis's own first-order fit (no gain between the sensors).
+    first_order_lines : sequence of ForeignLine
+        The lines the default path found one sensor carrying alone (:attr:`OutputModel.lines`).
 
     Raises
     ------
@@ -358,6 +368,7 @@ def output_model_from_diagnosis(
         notes=tuple(diagnosis.identifiability),
         at_bound=tuple(final.at_bound),
         identification=final.identification,
+        lines=tuple(first_order_lines),
     )
 
 
@@ -479,8 +490,12 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
     from ..diagnose import diagnose, fit_effects
 
     diagnosis = diagnose(record) if effects is None else fit_effects(record, effects)
+    plain = default_estimate(record)
     return output_model_from_diagnosis(
-        diagnosis, origin_s=float(record.time[0]), first_order_taus=default_taus(record)
+        diagnosis,
+        origin_s=float(record.time[0]),
+        first_order_taus=None if plain is None else (plain.tau1, plain.tau2),
+        first_order_lines=() if plain is None else plain.lines,
     )
 
 

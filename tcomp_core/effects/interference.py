@@ -12,12 +12,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import TcompError
 from ..lines import foreign_lines, segment_length
 from .base import Effect, Evidence, FitContext, ParamSpec
+
+if TYPE_CHECKING:
+    from ..estimators import Estimate
 
 __all__ = ["HARMONICS", "Interference", "find_line", "interference_line"]
 
@@ -91,6 +96,29 @@ def _refine(reading: NDArray[np.float64], context: FitContext, f0: float) -> flo
     return float(grid[int(np.argmax(power))])
 
 
+#: A line-free τ this far (ratio) from the base model's is a start of its own.
+FAR_TAU_RATIO = 1.2
+
+
+def _line_free_estimate(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], dt: float
+) -> Estimate | None:
+    """ml-eiv with the lines one channel carries notched (:mod:`tcomp_core.lines`), or None."""
+    from ..estimators import estimate
+
+    try:
+        return estimate(tc1, tc2, dt)
+    except TcompError:
+        return None
+
+
+def _far(found: Estimate, params: Mapping[str, float]) -> bool:
+    return any(
+        abs(math.log(getattr(found, name) / params[name])) > math.log(FAR_TAU_RATIO)
+        for name in ("tau1", "tau2")
+    )
+
+
 class Interference(Effect):
     """``interference_hz`` and the amplitudes ``interference_a{h}``, ``interference_b{h}``.
 
@@ -153,15 +181,25 @@ class Interference(Effect):
         tc2: NDArray[np.float64],
     ) -> list[dict[str, float]]:
         channel = int(params.get("interference_channel", 2))
-        line = find_line(tc1, tc2, context.dt, params["tau1"], params["tau2"], channel)
+        robust = _line_free_estimate(tc1, tc2, context.dt)
+        lines = [line for line in robust.lines if line.channel == channel] if robust else []
+        if lines:
+            strongest = lines[0].frequency_hz
+        else:
+            line = find_line(tc1, tc2, context.dt, params["tau1"], params["tau2"], channel)
+            if line is None:
+                return []  # no line on this channel that the other does not explain
+            strongest = line[0]
         zeros = {f"interference_{part}{h}": 0.0 for h in HARMONICS for part in ("a", "b")}
         reading = (tc1, tc2)[channel - 1]
-        if line is None:
-            return []  # no line on this channel that the other does not share: nothing to fit
         # The strongest line may be a harmonic of the fundamental: try f, f/3 and f/5.
         low = 2.0 / context.duration_s
-        candidates = [_refine(reading, context, line[0] / h) for h in HARMONICS]
-        return [{"interference_hz": f, **zeros} for f in candidates if f > low]
+        candidates = [_refine(reading, context, strongest / h) for h in HARMONICS]
+        starts = [{"interference_hz": f, **zeros} for f in candidates if f > low]
+        if lines and robust is not None and starts and _far(robust, params):
+            # The base model bent τ to explain the line: start also from τ without it.
+            starts.append({**starts[0], "tau1": robust.tau1, "tau2": robust.tau2})
+        return starts
 
     def additive(
         self, sensor: int, params: Mapping[str, float], context: FitContext
