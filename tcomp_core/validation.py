@@ -7,10 +7,12 @@ value.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import signal
 
 from .errors import DataError, NoExcitationError
 
@@ -21,6 +23,7 @@ __all__ = [
     "check_finite",
     "check_pair",
     "check_sample_interval",
+    "check_shared_signal",
     "sample_interval_from_time",
 ]
 
@@ -132,6 +135,44 @@ def check_excitation(
         raise NoExcitationError(
             f"{names[0]} and {names[1]} are identical in all {tc1.size} samples: two equal "
             "signals carry no information on the time constants"
+        )
+
+
+#: Half-overlapping Welch segments the shared-signal check averages at least: independent
+#: noise then stays below :data:`SHARED_COHERENCE` in every bin (P < 1e-9 per bin).
+SHARED_SEGMENTS = 32
+#: Magnitude-squared coherence that two sensors in one gas reach in some band.
+SHARED_COHERENCE = 0.5
+
+
+def check_shared_signal(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    names: Sequence[str] = ("tc1", "tc2"),
+) -> None:
+    """Refuse two signals that share nothing: noise alone, or sensors in different gases.
+
+    Two thermocouples in one gas carry its signal, so their coherence comes near 1 where the
+    gas moves them above their noise; two independent noises stay near 0 at every frequency,
+    and a fit of τ to them only finds the few samples the noise happens to correlate over.
+
+    Raises
+    ------
+    NoExcitationError
+        If the coherence stays below :data:`SHARED_COHERENCE` at every frequency.
+    """
+    longest = 2.0 * tc1.size / (SHARED_SEGMENTS + 1)
+    if longest < 16:
+        return  # too short to tell; the estimators' own checks apply
+    nperseg = 2 ** math.floor(math.log2(longest))
+    _, coherence = signal.coherence(tc1, tc2, fs=1.0 / dt, nperseg=nperseg)
+    highest = float(np.nanmax(coherence[1:])) if coherence.size > 1 else 0.0
+    if highest < SHARED_COHERENCE:
+        raise NoExcitationError(
+            f"{names[0]} and {names[1]} share no signal: their coherence is at most "
+            f"{highest:.2f} at any frequency (two sensors in one gas reach near 1 where it "
+            "moves them): noise alone, or not two thermocouples in the same gas"
         )
 
 

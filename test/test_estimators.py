@@ -18,7 +18,7 @@ from tcomp_core import (
     estimate,
 )
 from tcomp_core.errors import EstimationError
-from tcomp_core.estimators import DEFAULT_METHOD, DIFFERENCE_EQUATION_METHODS
+from tcomp_core.estimators import DEFAULT_METHOD, DIFFERENCE_EQUATION_METHODS, beta_ls
 from tcomp_core.estimators.scatter import equilibrated_condition, solve_gtls
 from tcomp_core.filters import prefilter
 from tcomp_core.models import pole_to_tau, tau_to_pole
@@ -418,8 +418,23 @@ def test_beta_ls_on_pure_noise_out_of_range(seed):
     rng = np.random.default_rng(seed)
     tc1 = 300.0 + rng.standard_normal(2000)
     tc2 = 300.0 + rng.standard_normal(2000)
+    # The estimator itself names the unphysical pole; estimate() refuses before it.
     with pytest.raises(PhysicalRangeError, match=r"beta-ls: a1 = -"):
-        estimate(tc1, tc2, 0.002, "beta-ls")
+        beta_ls(tc1, tc2, 0.002)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_two_noises_sharing_no_signal_are_refused_by_every_method(method):
+    rng = np.random.default_rng(26)
+    tc1 = 300.0 + rng.standard_normal(4000)
+    tc2 = 300.0 + rng.standard_normal(4000)
+    kwargs = {"alpha": 0.2} if method == "tdr-kee" else {}
+    with pytest.raises(NoExcitationError, match=r"tc1 and tc2 share no signal: their coherence"):
+        estimate(tc1, tc2, 0.002, method, **kwargs)
+    # With φ measured, ml-eiv used to fit τ of 1.5 and 4 samples to such noise.
+    if method == "ml-eiv":
+        with pytest.raises(NoExcitationError, match=r"share no signal"):
+            estimate(tc1, tc2, 0.002, phi=None)
 
 
 @pytest.mark.parametrize("method", DIFFERENCE_EQUATION_METHODS)

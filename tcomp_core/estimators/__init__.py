@@ -28,7 +28,12 @@ from ..choices import DEFAULT_METHOD, METHODS, PAPER_METHODS, Method
 from ..errors import DataError, TcompError
 from ..filters import prefilter
 from ..lines import ForeignLine, foreign_lines, notch
-from ..validation import check_excitation, check_pair, check_sample_interval
+from ..validation import (
+    check_excitation,
+    check_pair,
+    check_sample_interval,
+    check_shared_signal,
+)
 from .beta import beta_gtls, beta_ls, beta_noise_covariance, beta_tls, estimate_beta_from_scatter
 from .gamma import gamma_ls, gamma_tls
 from .mleiv import ml_eiv, phi_from_data
@@ -131,6 +136,7 @@ def estimate(
     first, second = check_pair(tc1, tc2, names)
     dt = check_sample_interval(dt)
     check_excitation(first, second, names)
+    check_shared_signal(first, second, dt, names)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if alpha is not None and method != "tdr-kee":
