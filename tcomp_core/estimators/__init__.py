@@ -183,10 +183,17 @@ def estimate(
         lines = tuple(foreign_lines(first, second, dt, taus, refit))
     if lines:
         frequencies = [line.frequency_hz for line in lines]
-        first, second = notch(first, dt, frequencies), notch(second, dt, frequencies)
-        raw = notch(raw[0], dt, frequencies), notch(raw[1], dt, frequencies)  # for φ's noise
+        notched = notch(first, dt, frequencies), notch(second, dt, frequencies)
         warm = start if result is None else (result.tau1, result.tau2)
-        result = replace(fit(first, second, warm), lines=lines)
+        try:
+            result = replace(fit(*notched, warm), lines=lines)
+        except TcompError:
+            if result is None:
+                raise
+            lines = ()  # the notches took what the fit needed: keep the estimate as it was
+        else:
+            first, second = notched
+            raw = notch(raw[0], dt, frequencies), notch(raw[1], dt, frequencies)  # for φ
     if result is None:
         raise refused
     if measured:
