@@ -47,6 +47,13 @@ __all__ = [
 LINE_PROMINENCE = 20.0
 LINE_NEIGHBOURS = 12
 LINE_EXCESS = 4.0
+#: A peak on the other channel at least this prominent, and within this ratio of the line's
+#: own prominence, makes the line the gas's: pick-up on one sensor leaves the other flat
+#: there (a 50 Hz line 26 917 times its neighbourhood on tc2 met 14.5 on tc1), while a
+#: first-order model that misses a physics (a delay) misjudges the power ratio of a line
+#: both sensors carry alike (285 and 222 times their neighbourhoods).
+SHARED_PROMINENCE = 4.0
+SHARED_RATIO = 20.0
 #: Welch segments averaged at least.
 MIN_SEGMENTS = 8
 #: Quality factor of the notches: -3 dB over f/Q (1.7 Hz at 50 Hz), a line and its drift.
@@ -110,9 +117,14 @@ def _local_median(power: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.median(windows, axis=1)
 
 
+def _prominence(power: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each bin's power over the median of its neighbourhood."""
+    return power / np.maximum(_local_median(power), 1e-300)
+
+
 def _peaks(power: NDArray[np.float64]) -> NDArray[np.intp]:
     """Bins (from the third on) where ``power`` peaks at :data:`LINE_PROMINENCE` × its median."""
-    prominence = power / np.maximum(_local_median(power), 1e-300)
+    prominence = _prominence(power)
     found, _ = signal.find_peaks(power)
     return found[(found >= 2) & (prominence[found] >= LINE_PROMINENCE)]
 
@@ -157,7 +169,11 @@ def _foreign(
     for number, sign in ((1, -1.0), (2, 1.0)):
         if channel is not None and number != channel:
             continue
+        own, other = (_prominence(spectra.power[i]) for i in (number - 1, 2 - number))
         for peak in _peaks(spectra.power[number - 1]):
+            beside = float(other[peak - 1 : peak + 2].max())
+            if beside >= max(SHARED_PROMINENCE, own[peak] / SHARED_RATIO):
+                continue  # the other channel peaks there too: the gas's line, off the model
             if np.all(sign * excess[:, peak] >= math.log(LINE_EXCESS)):
                 lines.append(_line(spectra, int(peak), number))
     return sorted(lines, key=lambda line: -line.amplitude_c)
@@ -228,7 +244,7 @@ def _strongest_candidates(spectra: _Spectra) -> list[float]:
     """Frequencies (Hz) of the :data:`MAX_CANDIDATES` most prominent peaks of either channel."""
     ranked: dict[int, float] = {}
     for power in spectra.power:
-        prominence = power / np.maximum(_local_median(power), 1e-300)
+        prominence = _prominence(power)
         for peak in _peaks(power):
             ranked[int(peak)] = max(ranked.get(int(peak), 0.0), float(prominence[peak]))
     best = sorted(ranked, key=lambda peak: -ranked[peak])[:MAX_CANDIDATES]

@@ -15,6 +15,7 @@ import pytest
 from tcomp_core import estimate
 from tcomp_core.cli import main
 from tcomp_core.effects.interference import find_line
+from tcomp_core.errors import EstimationError
 from tcomp_core.lines import foreign_lines, line_free_pair, notch
 from tcomp_core.simulate import simulate_pair
 
@@ -78,19 +79,24 @@ def test_the_gas_s_own_lines_are_not_foreign(kind):
     assert (result.tau1, result.tau2) == (plain.tau1, plain.tau2)
 
 
-def test_the_refit_overrules_a_line_that_only_a_wrong_tau_calls_foreign():
+def test_a_wrong_tau_calls_no_gas_line_foreign_and_the_refit_keeps_a_true_one():
     pair = _pair()
-    # τ2 three times too long predicts tc2's pulse harmonics far weaker than they are.
-    wrong = foreign_lines(pair.tc1, pair.tc2, DT, (pair.tau1, 3.0 * pair.tau2))
-    assert wrong  # the premise: with that τ the gas's lines look foreign
-    confirmed = foreign_lines(
-        pair.tc1,
-        pair.tc2,
-        DT,
-        (pair.tau1, 3.0 * pair.tau2),
-        refit=lambda a, b: (pair.tau1, pair.tau2),
-    )
-    assert confirmed == []
+    # τ2 three times too long predicts tc2's pulse harmonics far weaker than they are; both
+    # channels peak there alike, so they stay the gas's (as under a delay the model lacks).
+    assert foreign_lines(pair.tc1, pair.tc2, DT, (pair.tau1, 3.0 * pair.tau2)) == []
+    tc2 = pair.tc2 + _mains(pair.time, 5.0)
+    truth = (pair.tau1, pair.tau2)
+    confirmed = foreign_lines(pair.tc1, tc2, DT, (pair.tau1, 3.0 * pair.tau2), lambda a, b: truth)
+    assert any(abs(line.frequency_hz - 50.0) < 0.5 for line in confirmed)
+    # A refit that refuses leaves the τ given alone to judge.
+
+    def refuse(a, b):
+        raise EstimationError("refused")
+
+    alone = foreign_lines(pair.tc1, tc2, DT, truth, refuse)
+    assert [line.frequency_hz for line in alone] == [
+        line.frequency_hz for line in foreign_lines(pair.tc1, tc2, DT, truth)
+    ]
 
 
 def test_a_notch_on_both_readings_keeps_the_first_order_relation():
