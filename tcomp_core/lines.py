@@ -49,11 +49,12 @@ LINE_NEIGHBOURS = 12
 LINE_EXCESS = 4.0
 #: A peak on the other channel at least this prominent, and within this ratio of the line's
 #: own prominence, makes the line the gas's: pick-up on one sensor leaves the other flat
-#: there (a 50 Hz line 26 917 times its neighbourhood on tc2 met 14.5 on tc1), while a
-#: first-order model that misses a physics (a delay) misjudges the power ratio of a line
-#: both sensors carry alike (285 and 222 times their neighbourhoods).
+#: there (a 50 Hz line 26 917 times its neighbourhood on tc2 met 14.5 on tc1) or far below
+#: (mains on a gas with its own 50 Hz line: 20 460 against 2 585), while a first-order model
+#: that misses a physics (a delay) misjudges the power ratio of a line both sensors carry
+#: alike (285 and 222 times their neighbourhoods).
 SHARED_PROMINENCE = 4.0
-SHARED_RATIO = 20.0
+SHARED_RATIO = 4.0
 #: Welch segments averaged at least.
 MIN_SEGMENTS = 8
 #: Quality factor of the notches: -3 dB over f/Q (1.7 Hz at 50 Hz), a line and its drift.
