@@ -112,3 +112,22 @@ def test_the_diagnosis_takes_a_class_2_offset_for_the_sensors_ordinary_state(off
     for name, truth in (("tau1", pair.tau1), ("tau2", pair.tau2)):
         assert getattr(base, name) == pytest.approx(truth, rel=0.03), name
         assert getattr(found.final, name) == pytest.approx(truth, rel=0.03), name
+
+
+@pytest.mark.parametrize(("offset", "warned"), [(-2.5, False), (6.0, False), (-40.0, True)])
+def test_a_level_difference_beyond_class_2_is_said_with_what_to_do(
+    tmp_path, capsys, offset, warned
+):
+    """Exhaust pulses around 500 °C, where class 2 allows 6.25 °C (twice that with the
+    calibration's margin). Only the gain was checked: supports held cold that pull the two
+    wires 134 °C apart went without a word while τ came out 45 times the truth."""
+    from tcomp_core.cli import main
+    from tcomp_core.io import write_csv
+
+    pair = _pair("exhaust", seed=6)
+    path = write_csv(tmp_path / "pair.csv", pair.time, pair.tc1 + offset, pair.tc2)
+    assert main(["estimate", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert ("beyond IEC 60584 class 2" in err) is warned, err
+    if warned:
+        assert f"{offset:+.3g} °C in level" in err and "tcomp diagnose" in err, err
