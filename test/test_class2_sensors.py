@@ -131,3 +131,28 @@ def test_a_level_difference_beyond_class_2_is_said_with_what_to_do(
     assert ("beyond IEC 60584 class 2" in err) is warned, err
     if warned:
         assert f"{offset:+.3g} °C in level" in err and "tcomp diagnose" in err, err
+
+
+@pytest.mark.parametrize(("offset", "gain", "said"), [(2.0, 1.005, False), (-40.0, 1.0, True)])
+def test_the_node_s_engine_says_when_the_sensors_disagree_beyond_class_2(offset, gain, said):
+    """The node publishes what the CLI warns: ``sensor_disagreement`` in /diagnostics names the
+    gain and level ml-eiv fitted between the sensors when they lie beyond class 2."""
+    import numpy as np
+
+    from tcomp_core.online import OnlineCompensator, OnlineConfig
+    from tcomp_core.online.health import engine_values
+
+    pair = _pair("exhaust", seed=8)
+    tc1 = gain * pair.tc1 + offset
+    engine = OnlineCompensator(OnlineConfig(window_s=2.0, reconstruction="difference"))
+    stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
+    status = None
+    for start in range(0, stamps.size, 1000):
+        part = slice(start, start + 1000)
+        engine.add_pairs(stamps[part], tc1[part], pair.tc2[part])
+        status = engine.update_estimate() or status
+    assert status is not None and status.estimate is not None
+    text = engine_values(engine, status)["sensor_disagreement"]
+    assert bool(text) is said, text
+    if said:
+        assert "-40 °C in level" in text and "class 2" in text, text

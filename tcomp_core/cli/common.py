@@ -300,24 +300,17 @@ def warn_beyond_class_2(source: str, params: dict[str, float], level_c: float = 
     """
     import warnings
 
-    from ..effects.calibration import CLASS2_GAIN, CLASS2_MARGIN
     from ..errors import TcompWarning
-    from ..tolerance import class2_level_tolerance_c
+    from ..tolerance import class2_disagreement
 
-    gain = params.get("gain", 1.0)
-    offset = params.get("offset_c", 0.0)
-    tolerance = class2_level_tolerance_c(level_c)
-    if not (
-        abs(gain - 1.0) > CLASS2_MARGIN * CLASS2_GAIN or abs(offset) > CLASS2_MARGIN * tolerance
-    ):
+    beyond = class2_disagreement(params.get("gain", 1.0), params.get("offset_c", 0.0), level_c)
+    if not beyond:
         return
     warnings.warn(
-        f"{source}: the two readings differ by {100.0 * (gain - 1.0):+.3g} % in gain and "
-        f"{offset:+.3g} °C in level, beyond IEC 60584 class 2 ({100 * CLASS2_GAIN:g} % in "
-        f"gain, {tolerance:.2g} °C in level at {level_c:.4g} °C): τ is first order's with "
-        "that gain and level fitted. A difference that large is a physical effect the "
-        "first-order model lacks (conduction to the supports, radiation) or a "
-        "miscalibration: tcomp diagnose tells which, and --effects auto compensates it",
+        f"{source}: {beyond}: τ is first order's with that gain and level fitted. A "
+        "difference that large is a physical effect the first-order model lacks (conduction to "
+        "the supports, radiation) or a miscalibration: tcomp diagnose tells which, and "
+        "--effects auto compensates it",
         TcompWarning,
         stacklevel=2,
     )

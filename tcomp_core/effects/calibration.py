@@ -13,22 +13,13 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C, class2_level_tolerance_c
+from ..tolerance import CLASS2_GAIN, CLASS2_MARGIN, CLASS2_OFFSET_C, class2_level_tolerance_c
 from .base import Effect, Evidence, FitContext, ParamSpec
 
 __all__ = ["CLASS2_GAIN", "CLASS2_MARGIN", "CLASS2_OFFSET_C", "Calibration"]
 
 #: Largest relative gain error of one sensor against the other that counts as calibration.
 GAIN_LIMIT = 0.2
-#: A calibration difference within IEC 60584 class 2 (CLASS2_GAIN, CLASS2_OFFSET_C of
-#: :mod:`tcomp_core.tolerance`) is the state of the sensors users own: fitted when it helps
-#: (it moves τ) but no finding. It counts beyond class 2 by this factor: the fit resolves a
-#: gain to about ±1 % (95 % intervals on the effect simulator at K = 1 %,
-#: ``test_calibration_intervals_cover_the_truth_and_are_tight``) and more at higher noise, so
-#: a pair at the edge of the class is not called miscalibrated by its fit's error. (It was
-#: 1.25 until the first campaign draws: three clean pairs within class 2 were called
-#: miscalibrated.)
-CLASS2_MARGIN = 2.0
 
 
 class Calibration(Effect):

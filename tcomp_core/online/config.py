@@ -233,6 +233,9 @@ class EstimateStatus:
         Stamp of the newest sample in the window.
     poor_fit : bool
         Whether the model error exceeds ``max_model_error_pct``.
+    level_c : float
+        Mean temperature of the window's readings, degrees C (nan when none was estimated):
+        the level class 2's tolerance is judged at.
     """
 
     accepted: bool
@@ -243,3 +246,4 @@ class EstimateStatus:
     model_error_pct: float = math.nan
     stamp_ns: int = 0
     poor_fit: bool = False
+    level_c: float = math.nan

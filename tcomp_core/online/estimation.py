@@ -285,6 +285,7 @@ class EstimationJob:
             model_error_pct=model,
             stamp_ns=stamp_ns,
             poor_fit=model > config.max_model_error_pct,
+            level_c=float(np.mean(samples)),
         )
 
     def _estimate_segments(self) -> Estimate:

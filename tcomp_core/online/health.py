@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 from ..lines import ForeignLine
+from ..tolerance import class2_disagreement
 from .compensator import OnlineCompensator
 from .config import EstimateStatus
 from .pairing import INPUT_NAMES, PairCounters
@@ -143,7 +144,11 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
         intervals ``tau{1,2}_ci_{low,high}_s`` (nan for estimators without them),
         ``foreign_lines`` (spectral lines one sensor carried and the other did not, notched
         from the latest estimate: ``tc2: 50 Hz, 150 Hz``, '' for none; mains pick-up,
-        :func:`tcomp_core.lines.foreign_lines`), ``estimate_accepted`` and ``last_reason``.
+        :func:`tcomp_core.lines.foreign_lines`), ``sensor_disagreement`` (the gain and level
+        the latest estimate fitted between the sensors when beyond IEC 60584 class 2 by the
+        calibration's margin, '' within: :func:`tcomp_core.tolerance.class2_disagreement`; a
+        physical effect first order lacks, such as conduction to the supports, or a
+        miscalibration), ``estimate_accepted`` and ``last_reason``.
     """
     config = engine.config
     tau = engine.published_tau
@@ -180,10 +185,20 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
             for end in ("low", "high")
         },
         "foreign_lines": _lines_value(estimate.lines if estimate else ()),
+        "sensor_disagreement": _disagreement_value(status),
         **output_values(engine),
         "estimate_accepted": str(bool(status and status.accepted)).lower(),
         "last_reason": status.reason if status else "",
     }
+
+
+def _disagreement_value(status: EstimateStatus | None) -> str:
+    estimate = None if status is None else status.estimate
+    if estimate is None or status is None or not math.isfinite(status.level_c):
+        return ""
+    return class2_disagreement(
+        estimate.params.get("gain", 1.0), estimate.params.get("offset_c", 0.0), status.level_c
+    )
 
 
 def _lines_value(lines: Sequence[ForeignLine]) -> str:
