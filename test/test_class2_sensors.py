@@ -156,3 +156,17 @@ def test_the_node_s_engine_says_when_the_sensors_disagree_beyond_class_2(offset,
     assert bool(text) is said, text
     if said:
         assert "-40 °C in level" in text and "class 2" in text, text
+
+
+def test_tcomp_process_warns_when_the_sensors_disagree_beyond_class_2(tmp_path):
+    from tcomp_core.io import write_csv
+    from tcomp_core.process import ProcessConfig, process
+
+    pair = _pair("exhaust", seed=8)
+    warned = {}
+    for offset in (0.0, -40.0):
+        source = write_csv(tmp_path / f"in{offset}.csv", pair.time, pair.tc1 + offset, pair.tc2)
+        result = process(source, tmp_path / f"out{offset}.csv", ProcessConfig(diagnose=False))
+        warned[offset] = [w for w in result.warnings if "class 2" in w]
+    assert warned[0.0] == []
+    assert len(warned[-40.0]) == 1 and "-40 °C in level" in warned[-40.0][0], warned

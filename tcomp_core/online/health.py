@@ -185,14 +185,19 @@ def engine_values(engine: OnlineCompensator, status: EstimateStatus | None) -> d
             for end in ("low", "high")
         },
         "foreign_lines": _lines_value(estimate.lines if estimate else ()),
-        "sensor_disagreement": _disagreement_value(status),
+        "sensor_disagreement": sensor_disagreement(status),
         **output_values(engine),
         "estimate_accepted": str(bool(status and status.accepted)).lower(),
         "last_reason": status.reason if status else "",
     }
 
 
-def _disagreement_value(status: EstimateStatus | None) -> str:
+def sensor_disagreement(status: EstimateStatus | None) -> str:
+    """How the sensors' fitted gain and level lie beyond class 2 in ``status``, or ''.
+
+    :func:`tcomp_core.tolerance.class2_disagreement` at the window's level; '' without an
+    estimate or for estimators that fit neither (β, γ, TDR).
+    """
     estimate = None if status is None else status.estimate
     if estimate is None or status is None or not math.isfinite(status.level_c):
         return ""

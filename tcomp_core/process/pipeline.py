@@ -41,7 +41,7 @@ from ..io import (
 from ..online import Engine, EngineStep, OnlineConfig, PairCounters, ScheduledEngine
 from ..online.diagnosis import diagnosis_values
 from ..online.extended import RecentPairs
-from ..online.health import Level, format_value
+from ..online.health import Level, format_value, sensor_disagreement
 from ..online.schedule import REF
 from ..workers import InlineRunner
 from .output import BagOutput, CsvOutput
@@ -286,6 +286,14 @@ def _stream_warnings(source: Path, pairs: int, engine: Engine) -> list[str]:
         warnings.append(f"{source}: no gas for {missing} of {pairs} pairs: {why}")
     if compensator.misfit_warning:  # as the last filter fitted on the stream saw it
         warnings.append(f"{source}: {compensator.misfit_warning}")
+    disagreement = sensor_disagreement(compensator.last_status)
+    if disagreement:
+        warnings.append(
+            f"{source}: in the last window's estimate {disagreement}: a physical effect the "
+            "first-order model lacks (conduction to the supports, radiation) or a "
+            "miscalibration: the closing diagnosis tells which (unless --no-diagnose) and "
+            "--effects auto compensates it"
+        )
     return warnings
 
 
