@@ -123,6 +123,14 @@ def test_a_suspect_that_clearly_beats_a_significant_one_is_significant_too():
     assert not marked[0].significant
     alone = _dominant([suspect("delay", stronger, False)], current)
     assert not alone[0].significant
+    # ... nor when it does not beat the current model itself: an accepted suspect may stand
+    # above it (a noise ratio is accepted by its measured φ when its refit does no harm).
+    measured = _fit(3.0, 3.1, 0.5, [3.0, 3.1, 2.9, 3.2, 3.0], taus)
+    level = _fit(2.45, 2.55, 0.5, [2.45, 2.55, 2.35, 2.65, 2.45], {**taus, "delay_s": 1e-6})
+    marked = _dominant(
+        [suspect("delay", level, False), suspect("noise_ratio", measured, True)], current
+    )
+    assert not marked[0].significant
 
 
 @pytest.mark.slow
