@@ -123,6 +123,14 @@ def test_a_suspect_that_clearly_beats_a_significant_one_is_significant_too():
     assert not marked[0].significant
     alone = _dominant([suspect("delay", stronger, False)], current)
     assert not alone[0].significant
+    # ... nor when it does not beat the current model itself: an accepted suspect may stand
+    # above it (a noise ratio is accepted by its measured φ when its refit does no harm).
+    measured = _fit(3.0, 3.1, 0.5, [3.0, 3.1, 2.9, 3.2, 3.0], taus)
+    level = _fit(2.45, 2.55, 0.5, [2.45, 2.55, 2.35, 2.65, 2.45], {**taus, "delay_s": 1e-6})
+    marked = _dominant(
+        [suspect("delay", level, False), suspect("noise_ratio", measured, True)], current
+    )
+    assert not marked[0].significant
 
 
 @pytest.mark.slow
@@ -467,3 +475,26 @@ def test_an_implausible_fit_is_never_compensated():
     refused = output_model_from_diagnosis(dataclasses.replace(fitted, final=far))
     assert refused.applied() == () and refused.name() == "first-order"
     assert all("no physical sensor" in piece.reason for piece in refused.pieces)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("noise_c", [(1.0, 3.0), (3.0, 1.0)])
+def test_unequal_noise_is_named_and_every_effect_is_judged_against_the_fitted_first_order_tau(
+    noise_c,
+):
+    """Steps and ramps at 10 kHz, one sensor three times noisier than the other. β-GTLS with
+    φ = 1, the diagnosis's closed-form start, puts τ far off (or fails and falls back to its
+    grid), and every effect's plausibility bounds were taken from that start: on a campaign
+    draw the start's τ1 was 17 times the truth, so the noise ratio's refit, with τ right, was
+    called implausible and the verdict was none. The bounds come from the base model's fit."""
+    rig = _rig(signal="step_ramp", rate_hz=10_000.0, duration_s=6.0, seed=21, noise_c=noise_c)
+    rec = simulate_rig(rig)
+    found = diagnose(_record(rec, "unequal noise"))
+    assert not any("of the first-order" in s.signature for s in found.suspects), [
+        s.signature for s in found.suspects
+    ]
+    assert found.verdict == "noise_ratio", [
+        (s.effect, s.error_pct, s.significant) for s in found.suspects
+    ]
+    assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.05)
+    assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.05)
