@@ -90,6 +90,10 @@ class Evaluator:
         Cut-off of the comparison low-pass, Hz.
     fit_cutoff_hz : float or None
         Cut-off of the low-pass the readings go through before a fit, Hz (None: none).
+    start_taus_s : (float, float) or None
+        τ1, τ2 the base fit started from, s: with the fit's own τ, where the identification
+        measures the sensors' first-order disagreement (:func:`~.identification.identify`;
+        None: the context's ``base_taus_s``).
     """
 
     data: PreparedData
@@ -97,6 +101,7 @@ class Evaluator:
     slow: int
     cutoff_hz: float
     fit_cutoff_hz: float | None = None
+    start_taus_s: tuple[float, float] | None = None
     _sos: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -218,7 +223,7 @@ class Evaluator:
         _, predicted = self._free_run(model)
         gas1, gas2 = model.reconstruct(*self.readings, self.context)
         identification = None
-        base_taus = self.context.base_taus_s
+        base_taus = self.start_taus_s or self.context.base_taus_s
         intervals = covariance.intervals()
         # A piece undone for the dynamics only keeps first order's level: its change and band
         # are compared without their means, as the gas is published.
