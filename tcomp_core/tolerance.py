@@ -14,6 +14,7 @@ __all__ = [
     "CLASS2_GAIN",
     "CLASS2_MARGIN",
     "CLASS2_OFFSET_C",
+    "beyond_class2",
     "class2_disagreement",
     "class2_level_tolerance_c",
 ]
@@ -38,11 +39,23 @@ def class2_level_tolerance_c(level_c: float) -> float:
     return CLASS2_OFFSET_C + CLASS2_GAIN * abs(level_c)
 
 
+def beyond_class2(gain: float, offset_c: float, level_c: float) -> bool:
+    """Whether two sensors differ beyond class 2 by :data:`CLASS2_MARGIN`.
+
+    A gain off by more than the margin times :data:`CLASS2_GAIN`, or a difference at the level
+    ``offset_c`` (degrees C) beyond the margin times :func:`class2_level_tolerance_c` at
+    ``level_c`` (degrees C).
+    """
+    return bool(
+        abs(gain - 1.0) > CLASS2_MARGIN * CLASS2_GAIN
+        or abs(offset_c) > CLASS2_MARGIN * class2_level_tolerance_c(level_c)
+    )
+
+
 def class2_disagreement(gain: float, offset_c: float, level_c: float) -> str:
     """How two sensors' fitted disagreement lies beyond class 2, or '' when it does not.
 
-    Beyond means a gain off by more than :data:`CLASS2_MARGIN` times :data:`CLASS2_GAIN`, or a
-    level difference beyond that margin times :func:`class2_level_tolerance_c` at ``level_c``.
+    Beyond as :func:`beyond_class2` judges it.
 
     Parameters
     ----------
@@ -59,11 +72,9 @@ def class2_disagreement(gain: float, offset_c: float, level_c: float) -> str:
         E.g. ``"the two readings differ by +4.05 % in gain and +2.12 °C in level, beyond IEC
         60584 class 2 (0.75 % in gain, 3.7 °C in level at 163 °C)"``.
     """
-    tolerance = class2_level_tolerance_c(level_c)
-    if not (
-        abs(gain - 1.0) > CLASS2_MARGIN * CLASS2_GAIN or abs(offset_c) > CLASS2_MARGIN * tolerance
-    ):
+    if not beyond_class2(gain, offset_c, level_c):
         return ""
+    tolerance = class2_level_tolerance_c(level_c)
     return (
         f"the two readings differ by {100.0 * (gain - 1.0):+.3g} % in gain and "
         f"{offset_c:+.3g} °C in level, beyond IEC 60584 class 2 ({100 * CLASS2_GAIN:g} % in "

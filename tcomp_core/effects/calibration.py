@@ -13,7 +13,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from ..tolerance import CLASS2_GAIN, CLASS2_MARGIN, CLASS2_OFFSET_C, class2_level_tolerance_c
+from ..tolerance import CLASS2_GAIN, CLASS2_MARGIN, CLASS2_OFFSET_C, beyond_class2
 from .base import Effect, Evidence, FitContext, ParamSpec
 
 __all__ = ["CLASS2_GAIN", "CLASS2_MARGIN", "CLASS2_OFFSET_C", "Calibration"]
@@ -32,7 +32,9 @@ class Calibration(Effect):
     Material (:meth:`material`) beyond what two sensors of IEC 60584 class 2 may differ by:
     a gain off by more than :data:`CLASS2_GAIN`, or a difference at the mean level of more than
     :data:`CLASS2_OFFSET_C` plus :data:`CLASS2_GAIN` of the level, each with the margin
-    :data:`CLASS2_MARGIN`. Within it the difference is the sensors' ordinary state.
+    :data:`CLASS2_MARGIN` (:func:`~tcomp_core.tolerance.beyond_class2`, as the CLI and the
+    node judge ml-eiv's fitted gain and level). Within it the difference is the sensors'
+    ordinary state.
 
     Output (:meth:`output_handling`): ``dynamics``. Which sensor's calibration is right cannot
     be seen, so the dynamics use both sensors on tc1's scale and the level stays first order's.
@@ -46,11 +48,7 @@ class Calibration(Effect):
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         level = evidence.level_mean_c
         at_mean = (params["gain"] - 1.0) * level + params["offset_c"]
-        tolerance = class2_level_tolerance_c(level)
-        return bool(
-            abs(params["gain"] - 1.0) > CLASS2_MARGIN * CLASS2_GAIN
-            or abs(at_mean) > CLASS2_MARGIN * tolerance
-        )
+        return beyond_class2(params["gain"], at_mean, level)
 
     def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
         return (
