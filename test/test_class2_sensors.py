@@ -170,3 +170,45 @@ def test_tcomp_process_warns_when_the_sensors_disagree_beyond_class_2(tmp_path):
         warned[offset] = [w for w in result.warnings if "class 2" in w]
     assert warned[0.0] == []
     assert len(warned[-40.0]) == 1 and "-40 °C in level" in warned[-40.0][0], warned
+
+
+# --------------------------------------------------------------------------------------------
+# A first-order τ longer than the record
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("signal", "seed"), [("engine_pulses", 11), ("step_ramp", 12)])
+def test_a_tau_longer_than_the_record_from_a_fit_first_order_cannot_make_is_refused(signal, seed):
+    """Legs conducting to supports held cold (the independent detailed physics) read a third
+    of the gas and lag like no first-order pair: ml-eiv's best fit put τ2 at 2-6 record lengths
+    (truth 0.24 s) and the gas thousands of % off. It is refused, with the disagreement."""
+    from detailed_physics import Rig, simulate_rig
+
+    rig = Rig(
+        signal=signal,
+        rate_hz=500.0,
+        duration_s=4.0,
+        seed=seed,
+        conduction=True,
+        support_c=20.0,
+        noise_c=(0.3, 0.3),
+    )
+    record = simulate_rig(rig)
+    with pytest.raises(EstimationError) as refused:
+        estimate(record.tc1, record.tc2, 1.0 / rig.rate_hz)
+    message = str(refused.value)
+    assert "longer than the 4 s record" in message and "times the noise unexplained" in message
+    assert "°C in level" in message and "class 2" in message
+
+
+@pytest.mark.parametrize("kind", ["multisine", "exhaust"])
+def test_a_first_order_pair_slower_than_its_record_is_still_estimated(kind):
+    """τ of 1.5 and 4.5 record lengths: the fit explains the record to its noise, so the lag
+    is told from a gain and kept."""
+    pair = simulate_pair(
+        noise_percent=1.0, seed=3, warmup=2.0, duration=2.0, tau1=3.0, tau2=9.0, kind=kind
+    )
+    result = estimate(pair.tc1, pair.tc2, pair.dt)
+    assert result.tau2 > 2.0 * 2.0
+    for name, truth in (("tau1", pair.tau1), ("tau2", pair.tau2)):
+        assert result.params[f"{name}_ci_low"] <= truth <= result.params[f"{name}_ci_high"]

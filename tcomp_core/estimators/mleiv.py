@@ -93,6 +93,19 @@ _MAD_TO_SIGMA = 1.482602218505602
 #: The search's range of the gain deviation h = g - 1 between the sensors.
 _GAIN_RANGE = 0.5
 _TAU_HIGH_RECORDS = 10.0
+#: Time constants longer than one record (and than :data:`_TAU_RECORD_SAMPLES` samples) are
+#: trusted only from a fit that explains the record to its noise: the record's slowest change
+#: reaches such a sensor attenuated and about 90° late, as it would reach an integrator, and
+#: what tells the lag from an integrator's gain is a term of relative size 1/(ωτ), the first a
+#: model error bends. A pure first-order pair at 4.5 record lengths and K = 1 % is found within
+#: 5 %; conduction to cold supports, which first order cannot fit, gave 15 and 33 s on a 6 s
+#: record (truth 0.04 and 0.16 s) and a gas 4 500 % off.
+_TAU_RECORD_SAMPLES = 100.0
+#: The noise σ2 the fit implies (from J_min) over tc2's noise measured from the top of its
+#: spectrum, beyond which the fit does not explain the record to its noise. Pure first-order
+#: records give 0.98-0.99 (sampling spread a few %); conduction to cold supports with τ beyond
+#: the record 1.25-7.4.
+_MISFIT_RATIO = 1.1
 #: Most evaluations of the residual one search may take (least_squares' default is 300 for three
 #: parameters). A record the first-order model fits badly (a flow speed drifting through the
 #: record: τ itself drifts) has a long flat valley that the search crosses in 600-700.
@@ -402,6 +415,20 @@ def _gain_params(deviation: float, variance: float) -> dict[str, float]:
     }
 
 
+def record_length_s(samples: int, dt: float) -> float:
+    """The τ beyond which a record of ``samples`` readings ``dt`` apart holds no slower change, s.
+
+    Its length, and at least :data:`_TAU_RECORD_SAMPLES` samples.
+    """
+    return max(samples * dt, _TAU_RECORD_SAMPLES * dt)
+
+
+def _misfit_ratio(tc2: NDArray[np.float64], dt: float, noise_sigma2: float) -> float:
+    """The fit's implied σ2 over tc2's noise measured from its spectrum (inf if none shows)."""
+    measured = estimate_noise(tc2, dt).sigma
+    return noise_sigma2 / measured if measured > 0.0 else math.inf
+
+
 def _edge_message(problem: _CrossRelation, x: NDArray[np.float64]) -> str:
     """Why a fit on the edge of the search failed, with the sensors' fitted disagreement."""
     gain = 1.0 + float(x[2])
@@ -410,9 +437,33 @@ def _edge_message(problem: _CrossRelation, x: NDArray[np.float64]) -> str:
         if abs(x[2]) >= _GAIN_RANGE - 1e-6
         else f"τ = {math.exp(x[0]):.3g} s, {math.exp(x[1]):.3g} s"
     )
+    return _disagreement_message(
+        problem,
+        x,
+        f"the best fit lies at the edge of the search range ({where}): no first-order pair fits",
+    )
+
+
+def _too_slow_message(
+    problem: _CrossRelation, x: NDArray[np.float64], length: float, misfit: float
+) -> str:
+    """Why a fit with a τ longer than the record, which does not fit to the noise, is refused."""
+    return _disagreement_message(
+        problem,
+        x,
+        f"the best first-order fit has τ1 = {math.exp(x[0]):.3g} s, τ2 = {math.exp(x[1]):.3g} s, "
+        f"longer than the {length:.3g} s record, and it leaves {misfit:.3g} times the noise "
+        "unexplained: a lag that long is told from a gain only by what the model misses, so "
+        "no first-order pair fits and no gas is reconstructed from it",
+    )
+
+
+def _disagreement_message(problem: _CrossRelation, x: NDArray[np.float64], what: str) -> str:
+    """``what`` went wrong, with the sensors' fitted disagreement and what to do about it."""
+    gain = 1.0 + float(x[2])
     return (
-        f"ml-eiv: the best fit lies at the edge of the search range ({where}): no first-order "
-        f"pair fits. There the sensors disagree by {problem.offset(x):+.3g} °C in level and "
+        f"ml-eiv: {what}. "
+        f"There the sensors disagree by {problem.offset(x):+.3g} °C in level and "
         f"{100.0 * (gain - 1.0):+.3g} % in gain; IEC 60584 class 2 allows about "
         f"{CLASS2_OFFSET_C:g} °C or {100 * CLASS2_GAIN:g} %. Beyond that, check that both "
         "columns are thermocouples in the same gas and units, correct one sensor's "
@@ -477,9 +528,10 @@ def ml_eiv(
     NoExcitationError
         If the data do not determine both time constants (singular Jacobian).
     EstimationError
-        If the search fails or its minimum lies on the edge of the search range (no
-        first-order pair fits; the message gives the sensors' fitted disagreement in level
-        and gain).
+        If the search fails, its minimum lies on the edge of the search range (no
+        first-order pair fits), or a τ is longer than the record
+        (:func:`record_length_s`) from a fit that leaves more than the noise unexplained; the
+        message gives the sensors' fitted disagreement in level and gain.
     """
     measured = phi is None
     phi = phi_from_data(tc1, tc2, dt) if phi is None else _check_phi(phi)
@@ -502,6 +554,11 @@ def ml_eiv(
     tau = np.exp(fit.x[:2])
     a1, a2 = np.exp(-dt / tau)
     noise_variance = 2.0 * fit.cost / (problem.rows - _FITTED)
+    length = record_length_s(tc1.size, dt)
+    if np.any(tau > length):
+        misfit = _misfit_ratio(tc2, dt, math.sqrt(noise_variance))
+        if not misfit <= _MISFIT_RATIO:
+            raise EstimationError(_too_slow_message(problem, fit.x, length, misfit))
     covariance = noise_variance * np.linalg.inv(jacobian.T @ jacobian)
     params = {
         **_interval_params(tau, covariance),
