@@ -130,11 +130,12 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
     ),
     ParameterSpec(
         "phi",
-        1.0,
-        "noise variance ratio sigma1^2/sigma2^2 of the beta estimators",
-        1e-6,
+        0.0,
+        "noise variance ratio sigma1^2/sigma2^2 of ml-eiv, beta-gtls and the fused Eq. (7); "
+        "0 = measured from each window (the model's residual, as tcomp estimate --phi auto)",
+        0.0,
         1e6,
-        comment="noise variance ratio sigma1^2 / sigma2^2",
+        comment="noise variance ratio sigma1^2 / sigma2^2 (0 = measured from each window)",
     ),
     ParameterSpec(
         "prefilter_hz",

@@ -39,8 +39,11 @@ def test_every_pair_is_reconstructed_once_the_first_estimate_lands(pair_factory)
     assert engine.counters["unreconstructed"] == 0
     assert engine.tau is not None
     assert engine.tau[0] == pytest.approx(pair.tau1, rel=0.05)
-    # The backlog was reconstructed with the first accepted τ, like everything after it.
-    batch = reconstruct(pair.tc1, pair.tc2, pair.dt, *engine.tau)
+    # The backlog was reconstructed with the first accepted τ, like everything after it, the
+    # two sensors fused with the noise ratio measured with it (phi 0, the default).
+    phi = engine.last_status.estimate.phi
+    assert phi is not None and phi != 1.0
+    batch = reconstruct(pair.tc1, pair.tc2, pair.dt, *engine.tau, phi=phi)
     np.testing.assert_allclose(gas, batch.gas[: gas.size], rtol=1e-9)
 
 

@@ -113,6 +113,8 @@ class OnlineCompensator:
     ) -> None:
         self._config = config or OnlineConfig()
         self._tau = initial_tau
+        #: φ the accepted estimate was made with (measured when ``phi`` is 0; None before one).
+        self._phi: float | None = None
         self._period: float | None = self._config.sample_period_s or None
         self._estimator: WindowEstimator | None = None
         self._reconstructor: DifferenceReconstructor | KalmanReconstructor | None = None
@@ -384,7 +386,9 @@ class OnlineCompensator:
         elif isinstance(reconstructor, KalmanReconstructor):
             reconstructor.configure(config)
         else:
-            self._reconstructor = DifferenceReconstructor(config, self._period, self._tau)
+            self._reconstructor = DifferenceReconstructor(
+                config, self._period, self._tau, self._phi
+            )
 
     # -- jobs ----------------------------------------------------------------------------------
     def _set_reconstructor(self) -> None:
@@ -394,16 +398,16 @@ class OnlineCompensator:
         if self._config.reconstruction != "kalman":
             self._wanted_filter = ""
             if isinstance(reconstructor, DifferenceReconstructor):
-                reconstructor.retune(self._tau)
+                reconstructor.retune(self._tau, self._phi)
             else:
                 self._reconstructor = DifferenceReconstructor(
-                    self._config, self._period, self._tau
+                    self._config, self._period, self._tau, self._phi
                 )
             return
         if not isinstance(reconstructor, KalmanReconstructor):
             reconstructor = KalmanReconstructor(self._config, self._period, self._tau)
             self._reconstructor = reconstructor
-        reconstructor.retune(self._tau)
+        reconstructor.retune(self._tau, self._phi)
         self._want_filter()
 
     def _want_filter(self) -> None:
@@ -645,6 +649,7 @@ class OnlineCompensator:
         self.restart()
         self._period = None
         self._tau = None
+        self._phi = None
         self._reconstructor = None
         self._extended = None
         self._wanted_output = self._pending_output = self._building_output = None
@@ -863,6 +868,7 @@ class OnlineCompensator:
         if status.accepted and status.estimate is not None and self._period is not None:
             self.rate_note = "" if self._estimator is not None else self.rate_note
             self._tau = (status.estimate.tau1, status.estimate.tau2)
+            self._phi = status.estimate.phi
             self._set_reconstructor()
             if self._runner.busy or self._running:
                 pass  # the landed build is taken over with the next pairs

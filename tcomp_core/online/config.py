@@ -49,6 +49,8 @@ FUSION_FIT_SAMPLES = 4096
 #: The long-term ratio τ1/τ2 of the tracking estimator forgets over this many tracking memories
 #: (or the window, if longer).
 RATIO_MEMORY_FACTOR = 10.0
+#: Smallest noise variance ratio ``phi`` that may be fixed (0 measures it from each window).
+MIN_FIXED_PHI = 1e-6
 #: Bytes the window holds per sample pair (a buffer twice the window of three float64 columns).
 WINDOW_BYTES_PER_SAMPLE = 48
 #: The node's parameters that configure the engine (fields of :class:`OnlineConfig`).
@@ -78,7 +80,8 @@ class OnlineConfig:
     method : str
         Estimator, one of :data:`tcomp_core.METHODS`.
     phi : float
-        Noise variance ratio σ1²/σ2² for β-GTLS and for fusing the reconstructions.
+        Noise variance ratio σ1²/σ2² for ml-eiv, β-GTLS and for fusing the reconstructions;
+        0 = measured from each window (:attr:`fixed_phi`).
     prefilter_hz : float
         Zero-phase pre-filter applied to the window before estimation, Hz; 0 = off.
     postfilter_hz : float
@@ -159,6 +162,11 @@ class OnlineConfig:
         return self.min_temperature_c, self.max_temperature_c
 
     @property
+    def fixed_phi(self) -> float | None:
+        """``phi``, or None when it is measured from each window (``phi`` 0)."""
+        return self.phi if self.phi > 0.0 else None
+
+    @property
     def slop_ns(self) -> int:
         """``sync_slop_s`` in nanoseconds."""
         return round(self.sync_slop_s * 1e9)
@@ -181,6 +189,10 @@ class OnlineConfig:
         checks = [
             (1 <= self.postfilter_order <= 8, f"postfilter_order={self.postfilter_order!r}"),
             (self.gap_factor > 1.0, f"gap_factor={self.gap_factor!r} must be > 1"),
+            (
+                self.phi == 0.0 or self.phi >= MIN_FIXED_PHI,
+                f"phi={self.phi!r} must be 0 (measured from each window) or >= {MIN_FIXED_PHI:g}",
+            ),
             (
                 self.min_temperature_c < self.max_temperature_c,
                 f"min_temperature_c={self.min_temperature_c!r}, max_temperature_c="

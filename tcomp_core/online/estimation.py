@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from ..errors import DataError, TcompError
 from ..estimators import PHI_METHODS, Estimate, beta_noise_covariance, estimate
 from ..estimators.beta import estimate_beta_from_scatter
+from ..estimators.mleiv import phi_from_data
 from ..estimators.scatter import beta_scatter, solve_gtls
 from ..filters import prefilter
 from ..fit import fit_error_percent, rms_about_mean
@@ -106,7 +107,7 @@ class WindowEstimator:
         return ForgettingEstimator(
             self._period,
             memory_s=memory,
-            phi=self._config.phi,
+            phi=self._config.fixed_phi or 1.0,  # the tracker takes 1 when phi is measured
             ratio_memory_s=max(self._config.window_s, RATIO_MEMORY_FACTOR * memory),
         )
 
@@ -114,7 +115,7 @@ class WindowEstimator:
         wanted = round(self._config.window_s / self._period)
         capacity = max(MIN_SAMPLES, min(wanted, self._config.max_window_samples))
         method = self._config.method if self._config.method in BETA_METHODS else "beta-gtls"
-        return SlidingBetaWindow(capacity, self._period, method, self._config.phi)
+        return SlidingBetaWindow(capacity, self._period, method, self._config.fixed_phi or 1.0)
 
     # -- samples -------------------------------------------------------------------------------
     def extend(
@@ -180,8 +181,12 @@ class WindowEstimator:
         try:
             if self._tracker is not None and self._tracker.rows + 1 >= MIN_SAMPLES:
                 result = self._tracker.estimate()
-            elif config.method in BETA_METHODS and config.prefilter_hz == 0.0:
-                result = window.estimate()
+            elif (
+                config.method in BETA_METHODS
+                and config.prefilter_hz == 0.0
+                and not (config.method in PHI_METHODS and config.fixed_phi is None)
+            ):
+                result = window.estimate()  # φ measured needs the samples: the batch path
         except (TcompError, ValueError) as exc:
             result = str(exc)
         from_window = result is not None and self._tracker is None
@@ -268,7 +273,7 @@ class EstimationJob:
         )
         # β-GTLS on the window's own scatter has already found the eigenvalue the floor needs.
         eigenvalue = result.params.get("noise_eigenvalue") if self.same_problem else None
-        floor = self._noise_floor_percent(eigenvalue)
+        floor = self._noise_floor_percent(eigenvalue, result.phi)
         model = math.sqrt(max(fit**2 - floor**2, 0.0))
         reason = ""
         if not result.condition <= config.max_condition:
@@ -298,8 +303,11 @@ class EstimationJob:
         config, dt = self.config, self.dt
         segments = np.split(self.samples, self.segment_starts)
         prefilter_hz = config.prefilter_hz or None
-        phi = config.phi if config.method in PHI_METHODS else 1.0
+        phi = config.fixed_phi if config.method in PHI_METHODS else 1.0
+        longest = max(segments, key=len)
         if config.method in BETA_METHODS:
+            if phi is None:  # measured as ``estimate`` first measures it: from the spectra
+                phi = phi_from_data(longest[:, 0], longest[:, 1], dt, unmeasurable=1.0)
             scatter = np.zeros((3, 3))
             used = 0
             for segment in segments:
@@ -315,7 +323,6 @@ class EstimationJob:
                 raise DataError(f"the window's gap-free segments hold only {used} samples")
             result = estimate_beta_from_scatter(scatter, dt, used, config.method, phi)
             return result if prefilter_hz is None else replace(result, prefilter_hz=prefilter_hz)
-        longest = max(segments, key=len)
         return estimate(
             longest[:, 0],
             longest[:, 1],
@@ -326,16 +333,20 @@ class EstimationJob:
             start=self.warm,
         )
 
-    def _noise_floor_percent(self, eigenvalue: float | None = None) -> float:
+    def _noise_floor_percent(
+        self, eigenvalue: float | None = None, phi: float | None = None
+    ) -> float:
         """Fit error that tc2's measurement noise alone would cause, percent of std(tc2).
 
         The smallest generalized eigenvalue of the β scatter with C0(φ) estimates σ2² times the
         number of rows (the row noise covariance is σ2² C0(φ), Eq. 19); ``eigenvalue`` is that
-        eigenvalue when the estimate already solved this problem.
+        eigenvalue when the estimate already solved this problem. φ is the estimate's (measured
+        or given), else the configured one, else 1.
         """
         if eigenvalue is None:
+            ratio = phi or self.config.fixed_phi or 1.0
             try:
-                _, eigenvalues = solve_gtls(self.scatter, beta_noise_covariance(self.config.phi))
+                _, eigenvalues = solve_gtls(self.scatter, beta_noise_covariance(ratio))
             except (ValueError, np.linalg.LinAlgError):
                 return math.nan
             eigenvalue = float(eigenvalues[0])

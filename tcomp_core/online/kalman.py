@@ -228,7 +228,8 @@ class KalmanReconstructor:
     def configure(self, config: OnlineConfig) -> None:
         """Take settings that keep the filter (``reconstruct_from``, ``phi``, ...)."""
         self._config = config
-        self._fallback = DifferenceReconstructor(config, self._period, self._fallback.tau)
+        fallback = self._fallback
+        self._fallback = DifferenceReconstructor(config, self._period, fallback.tau, fallback.phi)
 
     @property
     def model(self) -> FusionModel | None:
@@ -241,9 +242,9 @@ class KalmanReconstructor:
         model = self.model
         return self._fallback.tau if model is None else (model.tau1, model.tau2)
 
-    def retune(self, tau: tuple[float, float]) -> None:
-        """Use new time constants in the Eq. (7) fallback (the filter changes by :meth:`use`)."""
-        self._fallback.retune(tau)
+    def retune(self, tau: tuple[float, float], phi: float | None = None) -> None:
+        """Use new time constants and their φ in Eq. (7) (the filter changes by :meth:`use`)."""
+        self._fallback.retune(tau, phi)
 
     def use(self, build: FilterBuild, pairs: _Pairs, *, interim: bool = False) -> None:
         """Take a built filter over, caught up through ``pairs`` (their gas is not returned).

@@ -77,12 +77,22 @@ class DifferenceReconstructor:
         Sample period, seconds (sets the combination weight).
     tau : (float, float)
         τ1, τ2, seconds.
+    phi : float, optional
+        Noise variance ratio σ1²/σ2² of the estimate in use (measured when ``config.phi`` is
+        0); by default ``config.phi``, or 1 when that is 0.
     """
 
-    def __init__(self, config: OnlineConfig, period_s: float, tau: tuple[float, float]) -> None:
+    def __init__(
+        self,
+        config: OnlineConfig,
+        period_s: float,
+        tau: tuple[float, float],
+        phi: float | None = None,
+    ) -> None:
         self._config = config
         self._period = period_s
         self._tau = tau
+        self._phi = phi
         self._weight = self._combination_weight()
         #: Values of the last reconstruction whose std was widened (Eq. 7 has none).
         self.last_widened = 0
@@ -93,7 +103,7 @@ class DifferenceReconstructor:
         return combination_weight(
             math.exp(-self._period / tau1),
             math.exp(-self._period / tau2),
-            self._config.phi,
+            self._phi or self._config.fixed_phi or 1.0,
             "inverse-variance" if choice == "fused" else choice,  # type: ignore[arg-type]
         )
 
@@ -102,9 +112,15 @@ class DifferenceReconstructor:
         """τ1, τ2 in use, seconds."""
         return self._tau
 
-    def retune(self, tau: tuple[float, float]) -> None:
-        """Use new time constants, seconds."""
+    @property
+    def phi(self) -> float | None:
+        """The estimate's noise variance ratio in use (None: the configured one)."""
+        return self._phi
+
+    def retune(self, tau: tuple[float, float], phi: float | None = None) -> None:
+        """Use new time constants, seconds, and the noise variance ratio estimated with them."""
         self._tau = tau
+        self._phi = phi
         self._weight = self._combination_weight()
 
     def reconstruct(
