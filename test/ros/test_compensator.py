@@ -73,13 +73,14 @@ def test_parameter_change_applies_and_bad_value_is_rejected(harness):
     for bad in (
         Parameter("method", value="nope"),
         Parameter("phi", value=-1.0),
+        Parameter("phi", value=1e-9),  # neither measured (0) nor a usable ratio
         Parameter("reconstruct_from", value="tc3"),
         Parameter("window_s", value="long"),
     ):
         result = node.set_parameters([bad])[0]
         assert not result.successful, bad.name
     assert node.get_parameter("method").value == DEFAULT_METHOD
-    assert node.get_parameter("phi").value == 1.0
+    assert node.get_parameter("phi").value == 0.0  # measured from each window
     assert node.engine.compensator.config.window_s == 1.0
     assert node.engine.compensator.config.method == DEFAULT_METHOD
     # An atomic change with one bad value changes nothing.
