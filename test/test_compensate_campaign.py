@@ -8,6 +8,7 @@ and compensated with the output model; the gas is scored against the simulator's
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -71,6 +72,26 @@ def test_a_record_whose_flow_speed_drifts_gets_a_first_order_estimate():
     result = estimate(record.tc1, record.tc2, record.dt, "ml-eiv", phi=1.0)
     assert result.params["evaluations"] > 300
     assert 0.0 < result.tau1 < result.tau2 < 10 * truth["tau2"]
+
+
+def test_a_grid_start_below_a_sample_does_not_stall_the_default_estimate():
+    # Draw 480: steps and ramps at 10 kHz, tc1 three times noisier than tc2, a delay. β-GTLS
+    # gives no start, and the τ grid's best cell had τ1 a tenth of a sample, where the residual
+    # does not depend on τ1: the search stalled there and the default path refused the record
+    # ("condition inf"). From the grid's best cell with both τ at least a sample it finds τ.
+    from tcomp_core.estimators import mleiv
+
+    item = campaign_draws.draw(480)
+    record, truth = campaign_draws.simulate(item)
+    result = estimate(record.tc1, record.tc2, record.dt, "ml-eiv", phi=None)
+    assert result.params["start_beta_gtls"] == 0.0
+    assert result.tau1 == pytest.approx(truth["tau1"], rel=0.05)
+    assert result.tau2 == pytest.approx(truth["tau2"], rel=0.05)
+    problem = mleiv._CrossRelation.from_signals(
+        record.tc1, record.tc2, record.dt, result.phi, mleiv._gain_weight(record.tc2)
+    )
+    starts = mleiv._grid_starts(problem)
+    assert len(starts) == 2 and min(starts[1][:2]) >= math.log(record.dt)
 
 
 def test_a_fit_whose_wide_parameters_move_the_gas_more_than_it_corrects_is_not_applied():
