@@ -25,14 +25,18 @@ $(STAMP): setup.py setup.cfg package.xml
 	$(PY) -m pip install --quiet -e '.[$(EXTRAS)]'
 	touch $(STAMP)
 
-# Everything: all tests, then the static checks (ruff, mypy).
+# Everything: all tests on every core (pytest-xdist; each ROS test on its worker's own
+# domains, test/ros/conftest.py), then the static checks (ruff, mypy). One BLAS thread per
+# worker: the workers already fill the cores. PYTEST_WORKERS=1 runs them one at a time.
+PYTEST_WORKERS ?= auto
+PARALLEL := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PARALLEL) $(PY) -m pytest -n $(PYTEST_WORKERS) --dist worksteal
 	@$(MAKE) --no-print-directory lint
 
 # The edit-test loop: the tests not marked slow (see the markers in pyproject.toml).
 test-fast: $(STAMP)
-	$(PY) -m pytest -m "not slow"
+	$(PARALLEL) $(PY) -m pytest -n $(PYTEST_WORKERS) --dist worksteal -m "not slow"
 
 demo: $(STAMP)
 	$(PY) -m tcomp_core.demo --out $(OUT)/demo

@@ -53,6 +53,7 @@ setup(
         "ros": ROS_WHEELS,
         "test": [
             "pytest>=8",
+            "pytest-xdist>=3.5",  # make test runs the suite on every core
             "hypothesis>=6.100",  # property-based fuzzing of the readers, the CLI and the node
             "ruff>=0.5",
             "mypy>=2",

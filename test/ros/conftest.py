@@ -15,11 +15,24 @@ import pytest
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
 _domains = itertools.count()
+#: Domain ids the tests use, 1..DOMAINS, split evenly among pytest-xdist's workers.
+DOMAINS = 200
 
 
 def next_domain_id() -> int:
-    """A domain id (1..200) unlikely to be shared with another test or a parallel run."""
-    return 1 + (os.getpid() * 13 + next(_domains)) % 200
+    """A domain id (1..200) of this test process's own, not shared with a parallel worker.
+
+    Under pytest-xdist each worker (``PYTEST_XDIST_WORKER`` gw0, gw1, ... of
+    ``PYTEST_XDIST_WORKER_COUNT``) takes its own block of ids in turn, so two tests running at
+    once never meet on one domain; a run without workers takes them all, starting where its
+    process id points (another run on the machine most likely elsewhere).
+    """
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    count = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if worker.startswith("gw") and count > 1:
+        block = DOMAINS // count
+        return 1 + int(worker[2:]) % count * block + next(_domains) % block
+    return 1 + (os.getpid() * 13 + next(_domains)) % DOMAINS
 
 
 def spin_until_condition(executor, predicate, timeout_s: float) -> bool:

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import next_domain_id
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -199,7 +200,7 @@ def test_missing_bag_raises_data_error(ros_context, tmp_path):
 
 def _node_env():
     env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(150 + os.getpid() % 50)
+    env["ROS_DOMAIN_ID"] = str(next_domain_id())
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     return env
 
