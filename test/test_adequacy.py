@@ -99,6 +99,7 @@ def test_a_delay_between_the_channels_is_named_by_the_phase(delay_ms):
         assert misfit.phase_note == ""
 
 
+@pytest.mark.slow
 def test_the_smoother_std_holds_the_misfit_and_is_left_alone_without_one():
     record = delayed_record(6.0)
     found = estimate(record.tc1, record.tc2, record.dt)
@@ -116,6 +117,7 @@ def test_the_smoother_std_holds_the_misfit_and_is_left_alone_without_one():
     assert _within(error, fused.std[:-1][start:], 2.0) > 0.8
 
 
+@pytest.mark.slow
 def test_reconstruct_warns_and_writes_a_variance_that_covers_a_delayed_record(tmp_path, capsys):
     """As a user runs it, with no option: the gas's error lies within its std."""
     record = delayed_record(6.0)
@@ -135,6 +137,7 @@ def test_reconstruct_warns_and_writes_a_variance_that_covers_a_delayed_record(tm
     assert _within(error, std, 4.0) > 0.9
 
 
+@pytest.mark.slow
 def test_the_stream_reports_the_misfit_and_publishes_a_variance_that_holds_it():
     """3 samples: the window's τ are accepted (at 6 the stream refuses them, rightly)."""
     record = delayed_record(3.0)
@@ -159,6 +162,7 @@ def test_the_stream_reports_the_misfit_and_publishes_a_variance_that_holds_it():
     assert _within(error, std, 4.0) > 0.9
 
 
+@pytest.mark.slow
 def test_process_warns_that_the_model_does_not_describe_the_pair(tmp_path, capsys):
     record = delayed_record(3.0)
     data = write_csv(tmp_path / "delayed.csv", record.time, record.tc1, record.tc2)

@@ -138,6 +138,7 @@ def test_parse_effects_refuses_bad_names(text, message):
         parse_effects(text)
 
 
+@pytest.mark.slow
 def test_a_dead_worker_is_reported_and_replaced(diagnoser):
     data = simulate_pair("multisine", noise_percent=1, duration=4, seed=3)
     args = (data.time, data.tc1, data.tc2, data.dt)

@@ -158,6 +158,7 @@ def test_the_node_s_engine_says_when_the_sensors_disagree_beyond_class_2(offset,
         assert "-40 °C in level" in text and "class 2" in text, text
 
 
+@pytest.mark.slow
 def test_tcomp_process_warns_when_the_sensors_disagree_beyond_class_2(tmp_path):
     from tcomp_core.io import write_csv
     from tcomp_core.process import ProcessConfig, process

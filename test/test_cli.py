@@ -106,6 +106,7 @@ def test_reconstruct_round_trip_recovers_gas(simulated, tmp_path, suffix, capsys
     np.testing.assert_allclose(gas, source.ref[:-1], rtol=1e-8)
 
 
+@pytest.mark.slow
 def test_reconstruct_defaults_to_the_smoother_and_falls_back_to_eq7(
     simulated, tmp_path, capsys, monkeypatch
 ):

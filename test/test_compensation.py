@@ -113,6 +113,7 @@ def test_a_delay_ahead_on_tc2_makes_the_stream_late_by_it():
     assert EquivalentStream(model_with(("delay",), {"delay_s": -40 * DT}), DT, 0).latency == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("causal", [False, True])
 def test_calibration_keeps_the_first_order_level(causal):
     """Which sensor is right is unknown: the level stays what first order gives."""
@@ -171,6 +172,7 @@ def _band_error(truth: np.ndarray, gas: np.ndarray) -> float:
         ("calibration", {"gain": 1.03, "offset_c": -4.0}, 0.95),
     ],
 )
+@pytest.mark.slow
 def test_compensated_gas_beats_first_order_with_the_true_parameters(effect, params, least_gain):
     sim = simulate_effect(effect, "multisine", duration=10.0, noise_percent=1.0, seed=2)
     assert {k: sim.params[k] for k in params} == params
@@ -185,6 +187,7 @@ def test_compensated_gas_beats_first_order_with_the_true_parameters(effect, para
         assert gain > least_gain, causal
 
 
+@pytest.mark.slow
 def test_radiation_is_corrected_in_level_not_only_in_dynamics():
     sim = simulate_effect("radiation", "multisine", duration=10.0, noise_percent=1.0, seed=2)
     level = float(np.mean(sim.gas))
@@ -377,6 +380,7 @@ def test_a_free_parameter_that_moves_the_gas_less_than_the_change_widens_the_ban
     assert found.checks[0].summary()["gas_move_c"] == 0.4
 
 
+@pytest.mark.slow
 def test_a_hot_pair_is_corrected_in_level_though_the_wall_is_left_free():
     """bags/radiation_500hz: the wires read about 21 degC low and 12 degC apart, where the
     sensors' class-2 tolerance allows 7.7 degC. Fitted with the sensors' level difference,

@@ -218,6 +218,7 @@ def _reference_rhs(rig, wire, gas_fn, c_ref):
     return rhs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("conduction", [False, True], ids=["junction", "fin"])
 def test_integrator_matches_an_adaptive_ode_solver(conduction):
     wires = (Wire(25e-6, emissivity=0.6, fin_nodes=12), Wire(50e-6, emissivity=0.6, fin_nodes=6))

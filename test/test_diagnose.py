@@ -237,6 +237,7 @@ def test_radiation_on_a_ramp_is_left_only_what_the_sensors_calibration_cannot_ex
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.08)
 
 
+@pytest.mark.slow
 def test_an_effect_is_judged_on_the_blocks_both_models_score():
     # The base model fits this record badly (a 4.7 % gain and 6 degC offset beyond class 2):
     # its start-up transient may cover a validation block that the calibration refit scores

@@ -230,6 +230,7 @@ def test_causal_output_depends_only_on_past_samples():
     assert perturbed.gas[changed - 1] != reference.gas[changed - 1]
 
 
+@pytest.mark.slow
 def test_streaming_fuser_matches_the_batch_filter():
     pair, model = causal_case()
     batch = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model=model, causal=True)
@@ -378,6 +379,7 @@ def test_the_modal_recursion_equals_the_schur_recursion():
         np.testing.assert_allclose(state, states[:, -1], atol=1e-10)
 
 
+@pytest.mark.slow
 def test_auto_leaves_out_a_model_that_cannot_be_fitted(monkeypatch):
     import tcomp_core.fusion.fitting as fitting
 
@@ -434,6 +436,7 @@ def _steps_through_the_sensors(model, seed=27, count=3000):
     return steps, *readings
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("causal", [True, False], ids=["filter", "smoother"])
 @pytest.mark.parametrize("widen", [True, False])
 def test_std_widens_where_the_readings_disagree_with_the_model(widen, causal, monkeypatch):

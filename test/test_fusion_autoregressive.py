@@ -60,6 +60,7 @@ def test_autoregressive_beats_band_limited_on_exhaust_pulses(seed):
     assert errors["autoregressive"] < 0.9 * errors["band-limited"], errors
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["multisine", "exhaust"])
 def test_auto_picks_the_autoregressive_model_for_broadband_gas_and_causal_filter_runs(kind):
     assert "autoregressive" in AUTO_MODELS

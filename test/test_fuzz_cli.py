@@ -128,6 +128,7 @@ def test_constant_and_short_records_get_one_line_errors(tmp_path, capsys):
         assert "zeros.csv" in err and "constant" in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_a_good_record_passes_every_verb(tmp_path, capsys):
     # The property must not be met by refusing everything.
     rng = np.random.default_rng(1)

@@ -224,6 +224,7 @@ def _loaded_after(code: str) -> set[str]:
     return set(last[1:])
 
 
+@pytest.mark.slow
 def test_lazy_names_load_on_first_use_and_shadow_their_submodule():
     assert not {"numpy", "scipy"} & _loaded_after("import tcomp_core\ntcomp_core.METHODS")
     # The submodule tcomp_core.reconstruct loaded first must not hide the function.

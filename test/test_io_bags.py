@@ -153,6 +153,7 @@ def test_corrupt_outer_record_length_is_refused_alike(tmp_path, capsys):
     assert f"its record length is {length + 1000} bytes" in message
 
 
+@pytest.mark.slow
 def test_cut_off_bag_is_read_alike_up_to_its_last_complete_record(tmp_path, capsys):
     bag = _record_bag(tmp_path / "cut")
     mcap = next(bag.glob("*.mcap"))
@@ -188,6 +189,7 @@ def processed(tmp_path_factory) -> tuple[Path, dict[str, int]]:
     return out, counts
 
 
+@pytest.mark.slow
 def test_process_output_opens_with_rosbags(processed):
     out, counts = processed
     with Reader(out) as reader:
@@ -238,6 +240,7 @@ def _raw(bag: Path) -> dict[str, list[tuple[int, bytes]]]:
     return found
 
 
+@pytest.mark.slow
 def test_reconstruct_to_a_bag_keeps_every_input_message(tmp_path, capsys):
     out = tmp_path / "gas_bag"
     assert main(["reconstruct", str(BAGS / "ramp_500hz"), "-o", str(out)]) == 0

@@ -134,6 +134,7 @@ def test_find_line_is_the_strongest_foreign_line():
     assert find_line(pair.tc1, pair.tc2, DT, pair.tau1, pair.tau2) is None
 
 
+@pytest.mark.slow
 def test_reconstruct_says_which_sensor_carries_the_line_and_keeps_it_out_of_the_gas(
     tmp_path, capsys
 ):
@@ -192,6 +193,7 @@ def test_no_line_is_foreign_on_first_order_records(kind, dt):
             assert estimate(pair.tc1, pair.tc2, dt).lines == (), (noise_percent, seed)
 
 
+@pytest.mark.slow
 def test_the_output_model_s_gas_is_reconstructed_without_the_line():
     from dataclasses import replace
 

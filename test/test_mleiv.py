@@ -110,6 +110,7 @@ def test_spread_well_below_beta_gtls(kind):
     assert ml[:, 1].std() <= gtls[:, 1].std()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sinusoid", "ramp"])
 def test_unbiased(kind):
     ml, _, _, _ = monte_carlo(kind)
@@ -118,6 +119,7 @@ def test_unbiased(kind):
     assert np.unique(ml[:, 0]).size == RUNS  # independent runs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", [0, 1])
 def test_interval_coverage(which):
     hits = np.concatenate(
@@ -135,6 +137,7 @@ def test_standard_error_matches_the_spread(kind):
     np.testing.assert_allclose(errors.mean(axis=0), ml.std(axis=0), rtol=0.25)
 
 
+@pytest.mark.slow
 def test_a_sinusoid_cannot_tell_a_gain_from_tau_and_says_so():
     """On one tone the gain rests on its prior: τ2's standard error holds the gain's share."""
     same, gained = (monte_carlo("sinusoid", gains=flag) for flag in (False, True))

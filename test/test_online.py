@@ -183,6 +183,7 @@ def test_kalman_filter_restarts_after_a_gap_and_loses_no_sample(pair_factory):
     assert restarted < 1.1 * error_after_restart(whole_stamps, whole_gas)
 
 
+@pytest.mark.slow
 def test_switching_to_kalman_at_run_time_fits_the_signal_model_at_once(pair_factory):
     pair = pair_factory("ramp", noise_percent=1.0, seed=5, duration=4.0)
     engine = OnlineCompensator(OnlineConfig(window_s=2.0, reconstruction="difference"))
@@ -216,6 +217,7 @@ def _velocity_pair(seed):
     return time, tc1, tc2, 0.0238 * scale
 
 
+@pytest.mark.slow
 def test_tracking_memory_follows_a_tau_that_changes_with_the_flow():
     time, tc1, tc2, tau1 = _velocity_pair(seed=6)
     stamps = np.round(time * 1e9).astype(np.int64) + 1
@@ -239,6 +241,7 @@ def test_tracking_memory_follows_a_tau_that_changes_with_the_flow():
     assert errors[0.5] < 0.12
 
 
+@pytest.mark.slow
 def test_stamps_of_the_first_pairs_keep_every_nanosecond(pair_factory):
     # Stamps of today's wall clock (~1.8e18 ns) need 61 bits: as float64 they would round.
     pair = pair_factory("multisine", noise_percent=1.0, seed=2, duration=1.0)
@@ -314,6 +317,7 @@ def test_health_warns_on_a_refused_estimate():
 
 
 # -- schedule ------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_schedule_does_not_depend_on_the_reading_chunks(pair_factory):
     pair = pair_factory()
     stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
@@ -340,6 +344,7 @@ def test_schedule_does_not_depend_on_the_reading_chunks(pair_factory):
 
 
 # -- guards against hostile input (issue 13) -----------------------------------------------------
+@pytest.mark.slow
 def test_values_outside_the_physical_range_are_invalid_in_tcomp_process(tmp_path, pair_factory):
     from tcomp_core.io import write_csv
     from tcomp_core.process import ProcessConfig, process
@@ -369,6 +374,7 @@ def test_configured_range_applies_and_is_checked():
         OnlineConfig(max_temperature_c=np.inf)
 
 
+@pytest.mark.slow
 def test_stamps_jumping_back_restart_the_engine_and_resume(pair_factory):
     pair = pair_factory()
     stamps = np.round(pair.time * 1e9).astype(np.int64) + 10**18
@@ -415,6 +421,7 @@ def test_window_is_bounded_in_samples_whatever_the_period():
     assert engine.compensator.window_samples <= 1000
 
 
+@pytest.mark.slow
 def test_health_warns_while_the_readings_disagree_with_the_signal_model():
     """A Kalman filter fitted on tones that meet 500 °C steps: its std widens (counted in
     ``widened``) and the status says so, at least WARN, while the steps last."""

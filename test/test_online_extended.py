@@ -31,6 +31,7 @@ def _run(compensator: OnlineCompensator, stamps, tc1, tc2, sizes):
     return (np.concatenate([getattr(o, name) for o in outs]) for name in ("stamps_ns", "gas"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["delay", "conduction", "calibration+delay"])
 def test_the_published_extended_gas_does_not_depend_on_the_batches(name):
     sim, stamps = _record()
@@ -61,6 +62,7 @@ def test_the_published_extended_gas_does_not_depend_on_the_batches(name):
     )
 
 
+@pytest.mark.slow
 def test_switching_models_mid_stream_skips_and_repeats_no_stamp():
     sim, stamps = _record()
     compensator = OnlineCompensator(
@@ -132,6 +134,7 @@ def test_a_refit_of_the_same_physics_keeps_since_and_another_model_restarts_it()
     assert compensator.output.since_ns > stamps[1000]
 
 
+@pytest.mark.slow
 def test_a_discontinuity_or_a_new_reconstruction_keeps_the_output_model():
     from dataclasses import replace
 
@@ -153,6 +156,7 @@ def test_a_discontinuity_or_a_new_reconstruction_keeps_the_output_model():
 
 
 # -- the engine's rules for output models (tcomp_core.online.diagnosis) --------------------------
+@pytest.mark.slow
 def test_an_output_model_is_taken_only_when_it_passes_and_dropped_when_stale():
     from tcomp_core.online import Engine
     from tcomp_core.online.diagnosis import OUTPUT_STALE_PERIODS
@@ -220,6 +224,7 @@ class _SlowDiagnosis:
         pass
 
 
+@pytest.mark.slow
 def test_a_fit_that_took_long_to_land_is_stale_only_that_much_later():
     from tcomp_core.online import Engine
     from tcomp_core.online.diagnosis import OUTPUT_STALE_PERIODS

@@ -115,6 +115,7 @@ def test_the_pairs_wait_for_the_first_filter_and_are_published_with_it(sine):
     np.testing.assert_array_equal(stamps, stream.stamps[: stream.fed - 1])
 
 
+@pytest.mark.slow
 def test_a_refit_takes_over_between_two_samples_without_a_transient(sine):
     runner = DeferredRunner()
     compensator = OnlineCompensator(OnlineConfig(window_s=2.0), runner=runner)

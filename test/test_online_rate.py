@@ -39,6 +39,7 @@ def _feed(engine, stamps, tc1, tc2, batch):
     return np.concatenate(gas), notes
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("reconstruction", ["difference", "kalman"])
 def test_a_rate_change_restarts_the_period_and_tau(reconstruction):
     engine = OnlineCompensator(OnlineConfig(window_s=2.0, reconstruction=reconstruction))
@@ -84,6 +85,7 @@ def test_a_steady_rate_with_jitter_and_gaps_is_not_a_change():
     assert engine.tau == pytest.approx(TAUS, rel=0.05)
 
 
+@pytest.mark.slow
 def test_a_change_inside_one_batch_is_counted_once_and_learns_the_new_period():
     """``tcomp process`` hands the engine a second of pairs at a time: a batch of 400 pairs
     at 500 Hz then 100 at 2 kHz used to learn the new period from all of them (2 ms, the

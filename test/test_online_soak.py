@@ -46,6 +46,7 @@ def _drive(engine: Engine, pair, start: int, drains: int) -> None:
             engine.report(now, new_period=True)
 
 
+@pytest.mark.slow
 def test_the_engine_holds_no_more_after_its_buffers_are_full():
     # 10 s of a 1 Hz sinusoid (a whole number of periods: repeated seamlessly), seeded noise.
     pair = simulate_pair(

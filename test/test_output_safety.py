@@ -84,6 +84,7 @@ def hidden_leftovers(directory):
     return [p.name for p in directory.rglob(".*partial*")]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(params()))
 def test_existing_output_needs_force_then_is_replaced(case, data, tmp_path, capsys):
     output = tmp_path / case[3]
@@ -136,6 +137,7 @@ def test_two_outputs_on_one_path_are_refused(data, tmp_path, capsys):
     assert not same.exists()
 
 
+@pytest.mark.slow
 def test_a_run_failing_half_way_leaves_nothing_and_the_rerun_is_not_blocked(
     data, tmp_path, capsys, monkeypatch
 ):

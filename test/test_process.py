@@ -179,6 +179,7 @@ def _check_outputs_open(bag: Path, expected: dict[str, int]) -> None:
 
 
 # -- the pipeline -----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_bag_output_opens_with_mcap_and_rosbags(tmp_path):
     result = process(BAGS / "ramp_500hz", tmp_path / "out", FAST)
     assert result.pairs == 5000 and result.warnings == []
@@ -222,6 +223,7 @@ def _history(bag: Path) -> list[tuple[int, int, dict[str, str]]]:
     return found
 
 
+@pytest.mark.slow
 def test_the_tau_history_is_what_the_engine_said_at_each_stamp(tmp_path):
     process(BAGS / "ramp_500hz", tmp_path / "out", FAST)
     record = read_bag(BAGS / "ramp_500hz")
@@ -280,6 +282,7 @@ def _drive_directly(stamps, tc1, tc2, config: OnlineConfig, update_s: float, bat
     return np.concatenate(out_stamps), np.concatenate(out_gas)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("batch_s", [0.1, 0.02])
 def test_gas_equals_the_compensator_driven_on_the_documented_schedule(tmp_path, batch_s):
     bag = BAGS / "ramp_500hz"
@@ -305,6 +308,7 @@ def test_gas_equals_the_compensator_driven_on_the_documented_schedule(tmp_path, 
     assert np.array_equal(written_stamps, stamps)
 
 
+@pytest.mark.slow
 def test_csv_in_and_out(tmp_path):
     record = read_bag(BAGS / "ramp_500hz")
     source = write_csv(
@@ -333,6 +337,7 @@ def test_csv_in_and_out(tmp_path):
     assert np.array_equal(back.tc1, record.tc1)
 
 
+@pytest.mark.slow
 def test_existing_output_needs_force(tmp_path):
     process(BAGS / "ramp_500hz", tmp_path / "out", FAST)
     with pytest.raises(DataError, match="exists; pass --force"):
@@ -349,6 +354,7 @@ def test_existing_output_needs_force(tmp_path):
     assert again.pairs == 5000
 
 
+@pytest.mark.slow
 def test_truncated_bag_is_processed_up_to_the_last_good_message(tmp_path):
     bag = tmp_path / "cut"
     shutil.copytree(BAGS / "rig_sine_5khz", bag)
@@ -400,6 +406,7 @@ def test_diagnosis_verdict_topic(tmp_path):
     assert f"{result.diagnosis_seconds:.2f} s" in table.splitlines()[1]
 
 
+@pytest.mark.slow
 def test_jobs_two_on_a_directory_and_the_cli(tmp_path, capsys):
     inputs = tmp_path / "in"
     inputs.mkdir()
@@ -431,6 +438,7 @@ def test_jobs_two_on_a_directory_and_the_cli(tmp_path, capsys):
     assert outcomes[1].result.gas == serial.gas
 
 
+@pytest.mark.slow
 def test_cli_refuses_existing_output_without_force(tmp_path, capsys):
     parser = argparse.ArgumentParser(prog="tcomp")
     add_process_command(parser.add_subparsers(dest="verb"))
@@ -442,6 +450,7 @@ def test_cli_refuses_existing_output_without_force(tmp_path, capsys):
     assert args.handler(parser.parse_args([*argv, "--force"])) == 0
 
 
+@pytest.mark.slow
 def test_unmatched_samples_are_dropped_and_reported(tmp_path):
     data = make_pair("sinusoid", duration=3.0, noise_percent=1.0, seed=5)
     bag = write_bag(
@@ -511,6 +520,7 @@ def _mcap_file(path: Path, topics: list[str], stamps, values: dict[str, np.ndarr
         writer.finish()
 
 
+@pytest.mark.slow
 def test_multi_file_lz4_bag_with_other_channel_ids_and_qos_is_copied_whole(tmp_path):
     data = make_pair("multisine", duration=8.0, noise_percent=1.0, seed=5)
     stamps = START_NS + np.arange(data.time.size, dtype=np.int64) * 2_000_000
@@ -564,6 +574,7 @@ def _check_outputs_open_any_qos(bag: Path) -> None:
             TYPESTORE.deserialize_cdr(raw, connection.msgtype)
 
 
+@pytest.mark.slow
 def test_copied_records_are_byte_identical_and_keep_the_input_channel_ids(tmp_path):
     source = BAGS / "ramp_500hz"
     process(source, tmp_path / "out", FAST)
@@ -583,6 +594,7 @@ def test_copied_records_are_byte_identical_and_keep_the_input_channel_ids(tmp_pa
         assert after[topic] == before[topic]
 
 
+@pytest.mark.slow
 def test_a_failing_write_ends_the_run_with_its_error_and_no_thread_left(tmp_path, monkeypatch):
     from tcomp_core.io import mcap_write
 
@@ -598,6 +610,7 @@ def test_a_failing_write_ends_the_run_with_its_error_and_no_thread_left(tmp_path
     assert {thread.name for thread in threading.enumerate()} == threads
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("flag", [[], ["--no-compress"]])
 def test_the_bag_reads_back_the_same_compressed_or_not(tmp_path, flag, capsys):
     compress = not flag  # zstd unless --no-compress
@@ -648,6 +661,7 @@ def _rate_change_record():
     return time, np.concatenate((slow.tc1, fast.tc1)), np.concatenate((slow.tc2, fast.tc2))
 
 
+@pytest.mark.slow
 def test_a_rate_change_gets_one_verdict_from_a_csv_and_a_bag(tmp_path):
     """The same stamps in a CSV and a bag: process follows the change in both (the CSV used
     to be refused as "not uniformly sampled"); the verbs that need one rate say where it

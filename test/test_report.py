@@ -113,6 +113,7 @@ def report(tmp_path_factory):
     return diagnosis, path
 
 
+@pytest.mark.slow
 def test_report_is_one_self_contained_page(report):
     diagnosis, path = report
     html = path.read_text(encoding="utf-8")
@@ -142,6 +143,7 @@ def test_report_escapes_hostile_text(report):
     assert "<friends>" not in html
 
 
+@pytest.mark.slow
 def test_report_without_effects_or_reference(tmp_path):
     diagnosis = make_diagnosis(source="plain.csv")
     bare = replace(

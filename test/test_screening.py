@@ -76,6 +76,7 @@ def _json(text):
     return json.loads(text)
 
 
+@pytest.mark.slow
 def test_reconstruct_writes_no_gas_on_a_left_out_reading(files, tmp_path, capsys):
     output = tmp_path / "gas.csv"
     assert main(["reconstruct", str(files[1]), "-o", str(output)]) == 0
@@ -89,6 +90,7 @@ def test_reconstruct_writes_no_gas_on_a_left_out_reading(files, tmp_path, capsys
     assert blank == expected
 
 
+@pytest.mark.slow
 def test_process_leaves_out_the_same_readings(files, tmp_path, capsys):
     output = tmp_path / "out.csv"
     assert main(["process", str(files[1]), "-o", str(output), "--no-diagnose"]) == 0

@@ -41,6 +41,7 @@ def test_tau_from_diagnostics_converges_within_two_percent(harness):
     assert float(found["condition"]) >= 1.0
 
 
+@pytest.mark.slow
 def test_gas_temperature_stamps_count_and_values(harness):
     data = simulate_pair("sinusoid", noise_percent=0.0, duration=5.0, seed=1)
     stamps = stamps_for(data.tc1.size, data.dt)
@@ -63,6 +64,7 @@ def test_gas_temperature_stamps_count_and_values(harness):
     np.testing.assert_allclose([value for _, value in new], truth, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_parameter_change_applies_and_bad_value_is_rejected(harness):
     h = harness()
     node = h.node
@@ -150,6 +152,7 @@ def test_kalman_reconstruction_and_tracking_by_name(harness):
     assert not h.node.set_parameters([Parameter("tracking_memory_s", value=-1.0)])[0].successful
 
 
+@pytest.mark.slow
 def test_nan_samples_reported_and_node_carries_on(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=3)
     stamps = stamps_for(data.tc1.size, data.dt)
@@ -170,6 +173,7 @@ def test_nan_samples_reported_and_node_carries_on(harness):
     assert int(values(status)["published"]) > 0
 
 
+@pytest.mark.slow
 def test_out_of_order_and_duplicate_stamps(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=6)
     stamps = stamps_for(data.tc1.size, data.dt)
@@ -231,6 +235,7 @@ def test_sensors_at_different_rates_pair_within_slop(harness):
     assert float(found["tau2_s"]) == pytest.approx(fast.tau2, rel=0.02)
 
 
+@pytest.mark.slow
 def test_stale_before_any_estimate(harness):
     h = harness()
     status = h.next_diagnostics()
@@ -301,6 +306,7 @@ def test_poor_fit_names_the_suspect_and_effects_make_the_error_fall_live(harness
     assert int(found["published"]) > 0  # gas_temperature went on, first-order
 
 
+@pytest.mark.slow
 def test_bad_effects_are_rejected_and_leave_the_node_unchanged(harness):
     node = harness().node
     for bad in (
@@ -437,6 +443,7 @@ def test_compensate_effects_switches_the_published_gas_to_the_diagnosed_model(ha
     assert found["output_model_note"] == "compensate_effects is false"
 
 
+@pytest.mark.slow
 def test_a_fit_that_fails_the_checks_or_goes_stale_falls_back_to_first_order(harness):
     """The engine's rules, seen through the node's diagnostics (test_online_extended has them
     through the engine alone)."""

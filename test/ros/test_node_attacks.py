@@ -38,6 +38,7 @@ def finite_gas(h):
 
 
 # -- QoS ---------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_best_effort_sensor_driver_gets_gas_out(harness):
     # REP 2003 sensor drivers publish best effort (SensorDataQoS): the default must hear them.
     data = ramp()
@@ -54,6 +55,7 @@ def test_best_effort_sensor_driver_gets_gas_out(harness):
     assert finite_gas(h)
 
 
+@pytest.mark.slow
 def test_reliable_inputs_on_request_hear_reliable_publishers_only(harness):
     h = harness(input_reliability="reliable")
     best_effort = h.peer.create_publisher(Temperature, "tc1/temperature", qos_profile_sensor_data)
@@ -62,6 +64,7 @@ def test_reliable_inputs_on_request_hear_reliable_publishers_only(harness):
     assert h.pub[0].get_subscription_count() == 1  # the harness's reliable publisher
 
 
+@pytest.mark.slow
 def test_input_reliability_is_checked(ros_context):
     with pytest.raises(ValueError, match="input_reliability"):
         CompensatorNode(
@@ -78,6 +81,7 @@ def malformed_payloads():
     return [bytes(8), huge_frame, rng.integers(0, 256, 64, dtype=np.uint8).tobytes(), b""]
 
 
+@pytest.mark.slow
 def test_malformed_messages_are_counted_reported_and_skipped(harness):
     data = ramp()
     h = harness(window_s=1.0, update_period_s=0.1)
@@ -103,6 +107,7 @@ def test_malformed_messages_are_counted_reported_and_skipped(harness):
 
 
 # -- physical range ----------------------------------------------------------------------------
+@pytest.mark.slow
 def test_absurd_values_are_invalid_and_the_output_stays_finite_and_sane(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=6.0, seed=4)
     tc1 = data.tc1.copy()
@@ -124,6 +129,7 @@ def test_absurd_values_are_invalid_and_the_output_stays_finite_and_sane(harness)
 
 
 # -- stamps ------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_a_pair_stamped_far_in_the_future_is_a_discontinuity_not_an_outage(harness):
     data = ramp(duration=6.0)
     h = harness(window_s=1.0, update_period_s=0.1)
@@ -143,6 +149,7 @@ def test_a_pair_stamped_far_in_the_future_is_a_discontinuity_not_an_outage(harne
     assert finite_gas(h)
 
 
+@pytest.mark.slow
 def test_stamps_one_nanosecond_apart_do_not_exhaust_memory(harness):
     h = harness(window_s=2.0, update_period_s=0.1, max_window_samples=20_000)
     data = ramp()
@@ -154,6 +161,7 @@ def test_stamps_one_nanosecond_apart_do_not_exhaust_memory(harness):
     assert int(found["matched"]) == data.tc1.size
 
 
+@pytest.mark.slow
 def test_a_window_beyond_the_memory_budget_is_refused_on_set_and_at_start(ros_context):
     node = CompensatorNode(context=ros_context)
     try:
@@ -169,6 +177,7 @@ def test_a_window_beyond_the_memory_budget_is_refused_on_set_and_at_start(ros_co
 
 
 # -- parameters --------------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("node_class", [CompensatorNode, ReplayNode])
 def test_every_range_is_well_formed_as_clients_see_it(ros_context, spin_until, node_class):
     # Through the DescribeParameters service, as `ros2 param describe` and rqt read them.
@@ -203,6 +212,7 @@ def test_every_range_is_well_formed_as_clients_see_it(ros_context, spin_until, n
         node.destroy_node()
 
 
+@pytest.mark.slow
 def test_the_config_file_applies_under_a_namespace(tmp_path):
     import rclpy
     from rclpy.context import Context
@@ -233,6 +243,7 @@ def test_the_config_file_applies_under_a_namespace(tmp_path):
             rclpy.try_shutdown(context=context)
 
 
+@pytest.mark.slow
 def test_compensator_under_sim_time_follows_clock(harness):
     h = harness(use_sim_time=True, silence_timeout_s=1.0)
     clock = h.peer.create_publisher(Clock, "/clock", 10)

@@ -135,6 +135,7 @@ def _bag_outputs(bag: Path):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("reconstruction", ["difference", "kalman"])
 def test_process_output_equals_the_node_sample_for_sample(ros_context, tmp_path, reconstruction):
     bag = BAGS / "ramp_500hz"

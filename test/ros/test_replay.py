@@ -83,6 +83,7 @@ def run(context, spin_until, parameters, predicate, timeout=20.0):
     return replay, collector
 
 
+@pytest.mark.slow
 def test_bag_replayed_in_full_and_in_order(ros_context, spin_until, small_bag):
     path, stamps, series = small_bag
     replay, collector = run(
@@ -100,6 +101,7 @@ def test_bag_replayed_in_full_and_in_order(ros_context, spin_until, small_bag):
         np.testing.assert_array_equal([value for _, value in got], series[bag_topic])
 
 
+@pytest.mark.slow
 def test_replay_paces_at_the_requested_rate(ros_context, spin_until, small_bag):
     path, stamps, _ = small_bag
     started = time.monotonic()
@@ -109,6 +111,7 @@ def test_replay_paces_at_the_requested_rate(ros_context, spin_until, small_bag):
     assert bag_seconds / 2.0 * 0.8 < elapsed < bag_seconds / 2.0 + 3.0
 
 
+@pytest.mark.slow
 def test_loop_replays_with_increasing_stamps(ros_context, spin_until, small_bag):
     path, stamps, _ = small_bag
     _, collector = run(
@@ -124,6 +127,7 @@ def test_loop_replays_with_increasing_stamps(ros_context, spin_until, small_bag)
     assert got[stamps.size] == stamps[-1] + (1 + LOOP_GAP_STEPS) * 1_000_000
 
 
+@pytest.mark.slow
 def test_wait_for_subscribers_holds_the_start_until_every_topic_is_matched(
     ros_context, spin_until, small_bag
 ):
@@ -160,6 +164,7 @@ def test_wait_for_subscribers_holds_the_start_until_every_topic_is_matched(
         np.testing.assert_array_equal(got, stamps)
 
 
+@pytest.mark.slow
 def test_publish_clock(ros_context, spin_until, small_bag):
     path, stamps, _ = small_bag
     _, collector = run(
@@ -173,6 +178,7 @@ def test_publish_clock(ros_context, spin_until, small_bag):
     assert np.all(np.diff(collector.clock) >= 0)
 
 
+@pytest.mark.slow
 def test_simulate_source_publishes_at_the_sample_rate(ros_context, spin_until):
     started = time.monotonic()
     replay, collector = run(
