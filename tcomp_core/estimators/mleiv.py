@@ -330,9 +330,9 @@ def _grid_starts(problem: _CrossRelation) -> list[NDArray[np.float64]]:
 
     The grid's best cell, and its best cell with both τ at least a sample when that is another
     one. Far below a sample the residual hardly depends on τ (c = 1/(1 - a) → 1), so a search
-    started there cannot leave: on a step record at 10 kHz with tc2 ten times noisier the
+    started there cannot leave: on a step record at 10 kHz with tc1 three times noisier the
     grid's best cell had τ1 = 0.08 samples and the search stalled at a criterion 40 % above
-    the optimum it reaches from the second start (τ within 2 % of the truth).
+    the optimum it reaches from the second start (τ within 3 % of the truth).
     """
     low, high = problem.bounds()
     axis = np.linspace(low[0], high[0], _GRID_POINTS + 2)[1:-1]
