@@ -164,6 +164,7 @@ def _band_error(truth: np.ndarray, gas: np.ndarray) -> float:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("effect", "params", "least_gain"),
     [
@@ -172,7 +173,6 @@ def _band_error(truth: np.ndarray, gas: np.ndarray) -> float:
         ("calibration", {"gain": 1.03, "offset_c": -4.0}, 0.95),
     ],
 )
-@pytest.mark.slow
 def test_compensated_gas_beats_first_order_with_the_true_parameters(effect, params, least_gain):
     sim = simulate_effect(effect, "multisine", duration=10.0, noise_percent=1.0, seed=2)
     assert {k: sim.params[k] for k in params} == params
