@@ -48,6 +48,8 @@ setup(
         "lz4>=4.0",
         "matplotlib>=3.8",
         "tqdm>=4.60",  # progress bar of tcomp process
+        "dask[distributed]>=2024.1",  # tcomp campaign: local or remote cluster
+        "pyarrow>=15",  # tcomp campaign's table as Parquet
     ],
     extras_require={
         "ros": ROS_WHEELS,

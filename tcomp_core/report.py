@@ -7,8 +7,6 @@ the style sheet is inline, and every piece of text is escaped.
 
 from __future__ import annotations
 
-import base64
-import io
 import itertools
 import math
 from collections.abc import Iterable, Sequence
@@ -25,69 +23,18 @@ from .diagnose.pipeline import fused_gas
 from .diagnose.residuals import Autocorrelation
 from .diagnose.result import Diagnosis, ModelFit, Suspect
 from .diagnose.windowed import WindowedDiagnosis
+from .htmlpage import bullet_list as _list
+from .htmlpage import image as _image
+from .htmlpage import number as _num
+from .htmlpage import page as _page
+from .htmlpage import section as _section
+from .htmlpage import table as _table
 from .plots import zoom_length
 
 __all__ = ["write_report", "write_windowed_report"]
 
-#: Resolution of the embedded figures, dots per inch.
-FIGURE_DPI = 90
 #: Most points drawn per line (longer series are thinned by a stride).
 MAX_POINTS = 20_000
-
-_STYLE = """
-body { font-family: sans-serif; max-width: 70em; margin: 1em auto; padding: 0 1em;
-       color: #222; line-height: 1.4; }
-h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; margin: 0.5em 0; }
-th, td { border: 1px solid #ccc; padding: 0.2em 0.6em; text-align: left; vertical-align: top; }
-th { background: #f2f2f2; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
-img { max-width: 100%; height: auto; }
-.verdict { font-size: 1.2em; font-weight: bold; }
-"""
-
-
-# -- html helpers -------------------------------------------------------------------------------
-
-
-def _num(value: float, spec: str = ".4g") -> str:
-    """A number for the page; ``n/a`` for NaN and ``inf`` for infinities."""
-    value = float(value)
-    if math.isnan(value):
-        return "n/a"
-    return format(value, spec) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
-
-
-def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
-    """An HTML table; cells holding numbers are right-aligned. All text is escaped."""
-    head = "".join(f"<th>{escape(h)}</th>" for h in header)
-    body = []
-    for row in rows:
-        cells = "".join(
-            f'<td class="num">{escape(_num(c))}</td>'
-            if isinstance(c, float)
-            else f"<td>{escape(str(c))}</td>"
-            for c in row
-        )
-        body.append(f"<tr>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
-
-
-def _list(items: Iterable[str]) -> str:
-    entries = "".join(f"<li>{escape(item)}</li>" for item in items)
-    return f"<ul>{entries}</ul>" if entries else "<p>none</p>"
-
-
-def _section(title: str, *parts: str) -> str:
-    return f"<section><h2>{escape(title)}</h2>{''.join(parts)}</section>"
-
-
-def _image(figure: Figure, alt: str) -> str:
-    """The figure as an embedded PNG (no metadata naming the software)."""
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=FIGURE_DPI, metadata={"Software": None})
-    data = base64.b64encode(buffer.getvalue()).decode("ascii")
-    return f'<p><img alt="{escape(alt)}" src="data:image/png;base64,{data}"></p>'
-
 
 # -- data helpers -------------------------------------------------------------------------------
 
@@ -440,16 +387,6 @@ def _html(diagnosis: Diagnosis) -> str:
         )
     )
     return _page(f"tcomp diagnosis: {diagnosis.source}", body)
-
-
-def _page(title: str, body: str) -> str:
-    """A self-contained HTML page: the title (escaped here) and the body's sections."""
-    title = escape(title)
-    return (
-        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        f"<title>{title}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
-        f"<h1>{title}</h1>\n{body}\n</body>\n</html>\n"
-    )
 
 
 def _windows_figure(result: WindowedDiagnosis) -> Figure:

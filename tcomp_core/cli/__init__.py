@@ -27,6 +27,7 @@ from typing import Protocol, TextIO
 from .. import __version__
 from ..errors import TcompError, TcompWarning
 from . import (
+    campaign,
     diagnose,
     estimate,
     fit,
@@ -57,7 +58,18 @@ class _ShowWarning(Protocol):
 
 
 #: The verb modules, in the order ``tcomp --help`` lists them.
-VERBS = (simulate, estimate, reconstruct, sweep, study, diagnose, fit, track, process)
+VERBS = (
+    simulate,
+    estimate,
+    reconstruct,
+    sweep,
+    study,
+    diagnose,
+    fit,
+    track,
+    process,
+    campaign,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -27,7 +27,13 @@ from .common import (
 if TYPE_CHECKING:
     from ..process import ProcessConfig
 
-__all__ = ["add_parser", "process_config", "run"]
+__all__ = [
+    "add_engine_arguments",
+    "add_parser",
+    "add_stream_output_arguments",
+    "process_config",
+    "run",
+]
 
 
 def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
@@ -52,7 +58,7 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
         parser, "output bag directory or .csv file; a directory for a directory of inputs"
     )
     add_source_arguments(parser)
-    _add_engine_arguments(parser)
+    add_engine_arguments(parser)
     _add_output_arguments(parser)
     parser.set_defaults(handler=run)
     return parser
@@ -75,7 +81,8 @@ ENGINE_OPTIONS = (
 )
 
 
-def _add_engine_arguments(parser: argparse.ArgumentParser) -> None:
+def add_engine_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the node's parameters ``process`` takes (:data:`ENGINE_OPTIONS`) and ``--batch-s``."""
     engine = parser.add_argument_group(
         "estimation and reconstruction (the node's parameters, their defaults the node's)"
     )
@@ -108,34 +115,11 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="skip the diagnosis (it takes seconds to a minute)",
     )
-    out.add_argument(
-        "--diagnose-samples",
-        type=int,
-        default=20_000,
-        help="the diagnosis sees the last this many pairs, the --effects fit the first this "
-        "many (default 20000)",
-    )
-    out.add_argument(
-        "--effects",
-        default="none",
-        help="publish the gas temperature compensated with physics beyond first order: 'auto' "
-        "(the diagnosis's final model) or comma-separated effects, fitted on the first "
-        "--diagnose-samples pairs; 'none' (default) publishes first order",
-    )
-    out.add_argument(
-        "--compress",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="zstd-compress the bag's chunks (default; about a third of the size, and faster to "
-        "write); --no-compress writes them plain, as ros2 bag record does",
-    )
+    add_stream_output_arguments(out)
     out.add_argument(
         "--csv",
         action="store_true",
         help="with a directory of inputs: write CSV files instead of bags",
-    )
-    out.add_argument(
-        "--frame-id", default="", help="frame_id of gas_temperature (default: that of tc1)"
     )
     add_force_argument(out, "replace existing outputs")
     out.add_argument(
@@ -143,8 +127,39 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_stream_output_arguments(group: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """Add how the compensated output is made: effects, diagnosis samples, compression, frame."""
+    group.add_argument(
+        "--diagnose-samples",
+        type=int,
+        default=20_000,
+        help="the diagnosis sees the last this many pairs, the --effects fit the first this "
+        "many (default 20000)",
+    )
+    group.add_argument(
+        "--effects",
+        default="none",
+        help="publish the gas temperature compensated with physics beyond first order: 'auto' "
+        "(the diagnosis's final model) or comma-separated effects, fitted on the first "
+        "--diagnose-samples pairs; 'none' (default) publishes first order",
+    )
+    group.add_argument(
+        "--compress",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="zstd-compress the bag's chunks (default; about a third of the size, and faster to "
+        "write); --no-compress writes them plain, as ros2 bag record does",
+    )
+    group.add_argument(
+        "--frame-id", default="", help="frame_id of gas_temperature (default: that of tc1)"
+    )
+
+
 def process_config(args: argparse.Namespace) -> ProcessConfig:
     """The :class:`~tcomp_core.process.ProcessConfig` the parsed options describe.
+
+    Options a verb does not offer (``--no-diagnose``, ``--force``: ``tcomp campaign``) take
+    their defaults.
 
     Raises
     ------
@@ -161,11 +176,11 @@ def process_config(args: argparse.Namespace) -> ProcessConfig:
         batch_s=args.batch_s,
         topics=source_names(args.topics, "topics") or DEFAULT_TOPICS,
         columns=source_names(args.columns, "columns") or DEFAULT_COLUMNS,
-        diagnose=not args.no_diagnose,
+        diagnose=not getattr(args, "no_diagnose", False),
         diagnose_samples=args.diagnose_samples,
         effects=args.effects,
         compress=args.compress,
-        overwrite=args.force,
+        overwrite=getattr(args, "force", False),
         frame_id=args.frame_id,
     )
 

@@ -66,6 +66,8 @@ class WindowResult:
         An effect, ``none`` or ``unexplained``; None when the window was not diagnosed.
     effects : tuple of str
         The final model's effects (findings and ordinary physics).
+    params : dict of str to float
+        The final model's parameters besides τ1 and τ2 (the effects' parameters).
     tau1, tau2 : float
         The final model's time constants, s (NaN when not diagnosed).
     tau1_95, tau2_95 : (float, float) or None
@@ -86,6 +88,7 @@ class WindowResult:
     samples: int
     verdict: str | None = None
     effects: tuple[str, ...] = ()
+    params: dict[str, float] = field(default_factory=dict)
     tau1: float = float("nan")
     tau2: float = float("nan")
     tau1_95: tuple[float, float] | None = None
@@ -109,6 +112,7 @@ class WindowResult:
             "samples": self.samples,
             "verdict": self.verdict,
             "effects": list(self.effects),
+            "params": {name: _finite(value) for name, value in self.params.items()},
             "tau1": _finite(self.tau1),
             "tau2": _finite(self.tau2),
             "tau1_95": interval(self.tau1_95),
@@ -194,6 +198,11 @@ def _row(window: Window, candidates: Sequence[str], max_effects: int) -> WindowR
         row,
         verdict=found.verdict,
         effects=tuple(final.effects),
+        params={
+            name: float(value)
+            for name, value in final.params.items()
+            if name not in ("tau1", "tau2")
+        },
         tau1=float(final.tau1),
         tau2=float(final.tau2),
         tau1_95=final.intervals.get("tau1"),
@@ -305,7 +314,7 @@ def windowed_to_dict(result: WindowedDiagnosis) -> dict[str, Any]:
     ``rule`` (how it is drawn), ``agree``/``voting`` (windows giving it, windows voting),
     ``tau1``/``tau2`` {median, min, max} over the agreeing windows, ``disagreeing`` (window
     indices), ``windows`` (one row each: index, start_s, length_s, samples, verdict, effects,
-    tau1, tau2, tau1_95, tau2_95, error_pct, base_error_pct, problem, notes, votes).
+    params, tau1, tau2, tau1_95, tau2_95, error_pct, base_error_pct, problem, notes, votes).
     """
     whole = result.whole
     return {

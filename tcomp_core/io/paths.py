@@ -19,6 +19,7 @@ __all__ = [
     "MCAP_MAGIC",
     "bag_files",
     "bag_location",
+    "bag_topic_names",
     "check_readable_format",
     "check_regular_file",
     "is_bag_directory",
@@ -136,6 +137,52 @@ def _resolve(path: Path) -> Path:
         raise DataError(f"{path}: cannot resolve the path: {exc}") from exc
 
 
+def _bag_information(location: Path, wanted: str) -> dict:
+    """``rosbag2_bagfile_information`` of a bag directory's ``metadata.yaml``.
+
+    ``wanted`` (e.g. "the file list") names what was read it for, in the error.
+
+    Raises
+    ------
+    DataError
+        A file too large to be one, or one that cannot be parsed.
+    """
+    from ruamel.yaml import YAML
+
+    metadata = check_regular_file(location / "metadata.yaml")
+    if metadata.stat().st_size > MAX_METADATA_BYTES:
+        raise DataError(
+            f"{metadata}: {metadata.stat().st_size} bytes; not a rosbag2 metadata file"
+        )
+    try:
+        info = YAML(typ="safe").load(metadata.read_text("utf8"))["rosbag2_bagfile_information"]
+    except Exception as exc:  # ruamel raises many types; a bad metadata.yaml is a data error
+        raise DataError(f"{metadata}: cannot read {wanted}: {exc}") from exc
+    if not isinstance(info, dict):
+        raise DataError(f"{metadata}: rosbag2_bagfile_information is not a mapping")
+    return info
+
+
+def bag_topic_names(path: Path, msgtype: str = "sensor_msgs/msg/Temperature") -> list[str]:
+    """The topics of type ``msgtype`` a bag directory's ``metadata.yaml`` lists (no data read).
+
+    Raises
+    ------
+    DataError
+        As :func:`bag_location`; an unreadable ``metadata.yaml``.
+    """
+    location = bag_location(path)
+    if location.is_file():
+        raise DataError(f"{location}: a bare MCAP file lists no topics without being read")
+    entries = _bag_information(location, "the topic list").get("topics_with_message_count") or []
+    names = []
+    for entry in entries if isinstance(entries, list) else []:
+        topic = entry.get("topic_metadata", {}) if isinstance(entry, dict) else {}
+        if isinstance(topic, dict) and topic.get("type") == msgtype:
+            names.append(str(topic.get("name", "")))
+    return [name for name in names if name]
+
+
 def bag_files(path: Path) -> list[Path]:
     """The MCAP files of a bag directory (from ``metadata.yaml``) or a bare MCAP file.
 
@@ -158,16 +205,9 @@ def bag_files(path: Path) -> list[Path]:
     location = bag_location(path)
     if location.is_file():
         return [location]
-    from ruamel.yaml import YAML
-
-    metadata = check_regular_file(location / "metadata.yaml")
-    if metadata.stat().st_size > MAX_METADATA_BYTES:
-        raise DataError(
-            f"{metadata}: {metadata.stat().st_size} bytes; not a rosbag2 metadata file"
-        )
+    metadata = location / "metadata.yaml"
+    info = _bag_information(location, "the file list")
     try:
-        info = YAML(typ="safe").load(metadata.read_text("utf8"))
-        info = info["rosbag2_bagfile_information"]
         names = info["relative_file_paths"]
         storage = str(info.get("storage_identifier", "mcap"))
     except Exception as exc:  # ruamel raises many types; a bad metadata.yaml is a data error

@@ -1,0 +1,195 @@
+"""The work of one recording: ``tcomp process`` on it, then its diagnosis window by window.
+
+The compensated output is written by :func:`tcomp_core.process.process`, the engine of
+``tcomp process`` and the node (no second code path); its closing diagnosis is replaced by the
+windowed one of ``tcomp diagnose`` (:func:`tcomp_core.diagnose.windowed.diagnose_windows`),
+which gives one row per window: the table's rows. The function runs in a Dask worker: it takes
+and returns plain values, and writes its result to the ledger itself once the output is
+complete, so a result survives the client.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError, TcompError
+from ..process import ProcessConfig, process
+from .inputs import ProbeRule, Recording
+from .ledger import write_entry
+
+__all__ = ["CampaignOptions", "run_recording"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class CampaignOptions:
+    """What every recording of a campaign is processed with.
+
+    Attributes
+    ----------
+    process : ProcessConfig
+        As ``tcomp process`` takes it (its closing diagnosis is replaced by the windows').
+    window_s : float
+        Diagnosis window, seconds of sample time (``math.inf``: the whole recording).
+    probe : ProbeRule
+    csv : bool
+        Write the compensated outputs as CSV files instead of bags.
+    """
+
+    process: ProcessConfig = field(default_factory=ProcessConfig)
+    window_s: float = 60.0
+    probe: ProbeRule = field(default_factory=ProbeRule)
+    csv: bool = False
+
+    def describe(self) -> dict[str, Any]:
+        """The options as JSON-ready values: part of each recording's ledger key."""
+        return {
+            "online": asdict(self.process.online),
+            "process": {
+                "batch_s": self.process.batch_s,
+                "topics": self.process.topics,
+                "columns": self.process.columns,
+                "effects": self.process.effects,
+                "diagnose_samples": self.process.diagnose_samples,
+                "compress": self.process.compress,
+                "frame_id": self.process.frame_id,
+            },
+            "window_s": self.window_s if math.isfinite(self.window_s) else "whole",
+            "probe": [self.probe.kind, self.probe.level, list(self.probe.mapping)],
+            "csv": self.csv,
+        }
+
+
+def _number(value: float | None) -> float:
+    return float(value) if value is not None else math.nan
+
+
+def _counts(counters: dict[str, Any]) -> tuple[int, int]:
+    """Invalid (not finite, out of range, undecodable) and dropped (unpaired, late) samples."""
+    invalid = sum(int(counters.get(k, 0)) for k in ("invalid_tc1", "invalid_tc2"))
+    invalid += sum(int(counters.get(k, 0)) for k in ("malformed_tc1", "malformed_tc2"))
+    dropped = sum(
+        int(counters.get(k, 0))
+        for k in ("unmatched_tc1", "unmatched_tc2", "out_of_order", "duplicates")
+    )
+    return invalid, dropped
+
+
+def run_recording(
+    recording: Recording,
+    output: str,
+    entry_path: str,
+    key: str,
+    options: CampaignOptions,
+) -> dict[str, Any]:
+    """Process and diagnose one recording; write and return its ledger entry.
+
+    Parameters
+    ----------
+    recording : Recording
+    output : str
+        The compensated output (a bag directory, or a ``.csv`` file); replaced if it exists
+        (a run cut after writing it and before its entry).
+    entry_path : str
+        Where the entry goes (:meth:`~.ledger.Ledger.entry_path`).
+    key : str
+        The recording's ledger key.
+    options : CampaignOptions
+
+    Returns
+    -------
+    dict
+        ``recording``, ``file``, ``probe``, ``output``, ``key``, ``pairs``, ``invalid``,
+        ``dropped``, ``tau`` (the streamed estimate's last τ1, τ2), ``verdict`` (the whole
+        recording's, from its windows), ``seconds``, ``warnings``, ``windows`` (one dict per
+        window: see :func:`_window_row`) and ``error`` ('' unless the recording failed; a
+        failed recording's entry is returned, not written, so a rerun tries it again).
+    """
+    from ..diagnose.windowed import diagnose_windows
+    from ..io.windows import WindowReader
+
+    started = time.perf_counter()
+    topics = recording.topics or options.process.topics
+    config = replace(options.process, topics=topics, overwrite=True, diagnose=False)
+    entry: dict[str, Any] = {
+        "recording": recording.name,
+        "file": str(recording.path),
+        "probe": recording.probe,
+        "output": output,
+        "key": key,
+        "windows": [],
+        "warnings": [],
+        "error": "",
+    }
+    try:
+        result = process(recording.path, Path(output), config)
+        entry["pairs"] = result.pairs
+        entry["invalid"], entry["dropped"] = _counts(result.counters)
+        entry["tau"] = [_number(t) for t in (result.tau or (None, None))]
+        entry["warnings"] = list(result.warnings)
+        reader = WindowReader(
+            recording.path, options.window_s, topics=topics, columns=config.columns
+        )
+        starts: dict[int, float] = {}
+        frames: list[str] = []
+
+        def windows():
+            for window in reader:
+                if window.record is not None:
+                    starts[window.index] = float(window.record.time[0]) - window.start_s
+                    frames.append(window.record.frame_id)
+                yield window
+
+        rows = []
+        try:
+            found = diagnose_windows(
+                windows(),
+                source=str(recording.path),
+                window_s=options.window_s,
+                progress=rows.append,
+            )
+            entry["verdict"] = found.whole.verdict
+            rows = found.windows
+        except DataError as exc:  # no window could be diagnosed: the rows say why
+            entry["verdict"] = f"failed: {exc}"
+        origin = min(starts.values()) if starts else math.nan
+        entry["probe"] = options.probe.probe(recording, topics[0], frames[0] if frames else "")
+        entry["windows"] = [_window_row(row.summary(), origin) for row in rows]
+    except (TcompError, ValueError, OSError) as exc:
+        entry["error"] = " ".join(str(exc).split())
+        entry["seconds"] = time.perf_counter() - started
+        return entry
+    entry["seconds"] = time.perf_counter() - started
+    write_entry(Path(entry_path), entry)
+    return entry
+
+
+def _window_row(summary: dict[str, Any], origin_s: float) -> dict[str, Any]:
+    """A window's diagnosis as a table row: absolute start, τ with intervals, effects."""
+    low_high = {name: summary[f"{name}_95"] or [None, None] for name in ("tau1", "tau2")}
+    start = summary["start_s"]
+    return {
+        "window": summary["index"],
+        "window_start_s": origin_s + start if np.isfinite(origin_s) else start,
+        "window_length_s": summary["length_s"],
+        "samples": summary["samples"],
+        "verdict": summary["verdict"] or "",
+        "effects": "+".join(summary["effects"]),
+        "params": json.dumps(summary["params"], sort_keys=True),
+        "tau1": summary["tau1"],
+        "tau1_low": low_high["tau1"][0],
+        "tau1_high": low_high["tau1"][1],
+        "tau2": summary["tau2"],
+        "tau2_low": low_high["tau2"][0],
+        "tau2_high": low_high["tau2"][1],
+        "error_pct": summary["error_pct"],
+        "base_error_pct": summary["base_error_pct"],
+        "problem": summary["problem"],
+        "votes": summary["votes"],
+    }
