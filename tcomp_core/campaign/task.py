@@ -111,7 +111,7 @@ def run_recording(
         window: see :func:`_window_row`) and ``error`` ('' unless the recording failed; a
         failed recording's entry is returned, not written, so a rerun tries it again).
     """
-    from ..diagnose.windowed import diagnose_windows
+    from ..diagnose.windowed import WindowResult, diagnose_windows
     from ..io.windows import WindowReader
 
     started = time.perf_counter()
@@ -146,7 +146,7 @@ def run_recording(
                     frames.append(window.record.frame_id)
                 yield window
 
-        rows = []
+        rows: list[WindowResult] = []
         try:
             found = diagnose_windows(
                 windows(),
