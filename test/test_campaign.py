@@ -291,3 +291,39 @@ def test_the_cli_names_a_bad_probe_rule_and_inputs_without_recordings(tmp_path, 
     argv = ["campaign", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "--probe", "dir:0"]
     assert main(argv) == 1
     assert "--probe dir:0" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_windows_of_one_recording_are_diagnosed_across_the_workers_as_here(tmp_path):
+    from distributed import Client, LocalCluster, get_task_stream
+
+    bag = Path(__file__).resolve().parents[1] / "bags" / "ramp_500hz"
+    recording = Recording(bag, "ramp_500hz")
+    options = CampaignOptions(window_s=2.5)
+    here = run_recording(
+        recording, str(tmp_path / "here"), str(tmp_path / "here.json"), "k", options
+    )
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+        get_task_stream(client) as stream,
+    ):
+        future = client.submit(
+            run_recording,
+            recording,
+            str(tmp_path / "there"),
+            str(tmp_path / "there.json"),
+            "k",
+            options,
+            pure=False,
+        )
+        there = future.result()
+    windows = [t for t in stream.data if str(t["key"]).startswith("diagnose_window")]
+    assert len(windows) == 4
+    assert len({t["worker"] for t in windows}) == 2
+    assert [w["verdict"] for w in there["windows"]] == [w["verdict"] for w in here["windows"]]
+    for mine, theirs in zip(here["windows"], there["windows"], strict=True):
+        assert theirs["tau1"] == pytest.approx(mine["tau1"], rel=1e-9)
+    assert json.loads((tmp_path / "there.json").read_text())["verdict"] == here["verdict"]

@@ -5,7 +5,10 @@ The compensated output is written by :func:`tcomp_core.process.process`, the eng
 windowed one of ``tcomp diagnose`` (:func:`tcomp_core.diagnose.windowed.diagnose_windows`),
 which gives one row per window: the table's rows. The function runs in a Dask worker: it takes
 and returns plain values, and writes its result to the ledger itself once the output is
-complete, so a result survives the client.
+complete, so a result survives the client. On a cluster each window's diagnosis is a task of
+its own (:data:`WINDOWS_IN_FLIGHT` of a recording at once, their records handed over as they
+are read), so the windows of one long recording are diagnosed on every worker; the recording's
+task leaves its worker's thread to them while it waits.
 """
 
 from __future__ import annotations
@@ -13,18 +16,27 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections import deque
+from collections.abc import Iterable, Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..diagnose.windowed import WindowResult
 from ..errors import DataError, TcompError
+from ..io.windows import Window
 from ..process import ProcessConfig, process
 from .inputs import ProbeRule, Recording
 from .ledger import write_entry
 
-__all__ = ["CampaignOptions", "run_recording"]
+__all__ = ["WINDOWS_IN_FLIGHT", "CampaignOptions", "run_recording"]
+
+#: Windows of one recording diagnosed at once on a cluster (their records are held meanwhile).
+WINDOWS_IN_FLIGHT = 4
+#: A window's task that raised is run again this many times.
+WINDOW_RETRIES = 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -111,7 +123,7 @@ def run_recording(
         window: see :func:`_window_row`) and ``error`` ('' unless the recording failed; a
         failed recording's entry is returned, not written, so a rerun tries it again).
     """
-    from ..diagnose.windowed import WindowResult, diagnose_windows
+    from ..diagnose.windowed import diagnose_windows
     from ..io.windows import WindowReader
 
     started = time.perf_counter()
@@ -153,6 +165,7 @@ def run_recording(
                 source=str(recording.path),
                 window_s=options.window_s,
                 progress=rows.append,
+                diagnose_all=_diagnose_on_cluster,
             )
             entry["verdict"] = found.whole.verdict
             rows = found.windows
@@ -168,6 +181,31 @@ def run_recording(
     entry["seconds"] = time.perf_counter() - started
     write_entry(Path(entry_path), entry)
     return entry
+
+
+def _diagnose_on_cluster(windows: Iterable[Window]) -> Iterator[WindowResult]:
+    """Each window's diagnosis as a task of the cluster this runs on, rows in window order.
+
+    Outside a Dask worker (a recording run directly) the windows are diagnosed here in turn.
+    """
+    from ..diagnose.windowed import diagnose_window
+
+    try:
+        from distributed import get_worker, worker_client
+
+        get_worker()
+    except (ImportError, ValueError):  # not in a worker
+        yield from (diagnose_window(window) for window in windows)
+        return
+    with worker_client() as client:
+        pending: deque[Any] = deque()
+        for window in windows:
+            future = client.submit(diagnose_window, window, retries=WINDOW_RETRIES, pure=False)
+            pending.append(future)
+            if len(pending) >= WINDOWS_IN_FLIGHT:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
 
 
 def _window_row(summary: dict[str, Any], origin_s: float) -> dict[str, Any]:

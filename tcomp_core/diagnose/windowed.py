@@ -34,6 +34,7 @@ __all__ = [
     "WholeVerdict",
     "WindowResult",
     "WindowedDiagnosis",
+    "diagnose_window",
     "diagnose_windows",
     "whole_verdict",
     "windowed_to_dict",
@@ -178,8 +179,10 @@ class WindowedDiagnosis:
     whole: WholeVerdict
 
 
-def _row(window: Window, candidates: Sequence[str], max_effects: int) -> WindowResult:
-    """Diagnose one window; a window that cannot be diagnosed says why."""
+def diagnose_window(
+    window: Window, candidates: Sequence[str] = EFFECT_NAMES, max_effects: int = MAX_EFFECTS
+) -> WindowResult:
+    """Diagnose one window; a window that cannot be diagnosed says why in its row."""
     row = WindowResult(
         index=window.index,
         start_s=window.start_s,
@@ -253,6 +256,7 @@ def diagnose_windows(
     candidates: Sequence[str] = EFFECT_NAMES,
     max_effects: int = MAX_EFFECTS,
     progress: Callable[[WindowResult], None] | None = None,
+    diagnose_all: Callable[[Iterable[Window]], Iterable[WindowResult]] | None = None,
 ) -> WindowedDiagnosis:
     """Diagnose each window of a record and draw the whole record's verdict from them.
 
@@ -271,6 +275,10 @@ def diagnose_windows(
         As :func:`~tcomp_core.diagnose.diagnose`.
     progress : callable, optional
         Called with each window's row once it is diagnosed.
+    diagnose_all : callable, optional
+        Maps the windows to their rows, in order (default: :func:`diagnose_window` on each in
+        turn, here; ``tcomp campaign`` hands them to its cluster's workers). ``candidates``
+        and ``max_effects`` are then its business.
 
     Returns
     -------
@@ -282,8 +290,12 @@ def diagnose_windows(
         As the reader raises it on the file as a whole; if no window could be diagnosed.
     """
     rows: list[WindowResult] = []
-    for window in windows:
-        row = _row(window, candidates, max_effects)
+    found = (
+        diagnose_all(windows)
+        if diagnose_all is not None
+        else (diagnose_window(window, candidates, max_effects) for window in windows)
+    )
+    for row in found:
         rows.append(row)
         if progress is not None:
             progress(row)
