@@ -95,7 +95,8 @@ def run_campaign(
     drift_threshold : float
         Relative change of a probe's τ, first recording to last, that raises a fouling alarm.
     log : callable, optional
-        Told one line per finished recording (default: stderr).
+        Told one line per finished recording (default: stderr, above a progress bar when
+        stderr is a terminal).
 
     Raises
     ------
@@ -109,7 +110,10 @@ def run_campaign(
     spec = spec or ClusterSpec()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    log = log or (lambda line: print(line, file=sys.stderr, flush=True))
+    bar = None
+    log_is_default = log is None
+    if log is None:
+        log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     recordings = find_recordings(
         inputs,
         rule=options.probe,
@@ -140,6 +144,11 @@ def run_campaign(
             f"{spec.describe()}"
         )
         finished = 0
+        if log_is_default and sys.stderr.isatty():
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(jobs), desc="tcomp campaign", unit="recording", file=sys.stderr)
+            log = bar.write
 
         def tell(job: Job, result: dict[str, Any]) -> None:
             nonlocal finished
@@ -147,9 +156,15 @@ def run_campaign(
             recording = by_job[job.name]
             outcome = result.get("error") or f"verdict {result.get('verdict', '?')}"
             log(f"[{finished}/{len(jobs)}] {recording.name}: {outcome}")
+            if bar is not None:
+                bar.update(1)
 
-        with dask_client(spec) as client:
-            results = run_jobs(client, run_recording, jobs, on_result=tell)
+        try:
+            with dask_client(spec) as client:
+                results = run_jobs(client, run_recording, jobs, on_result=tell)
+        finally:
+            if bar is not None:
+                bar.close()
         for job, result in zip(jobs, results, strict=True):
             recording = by_job[job.name]
             entries[recording.name] = {
