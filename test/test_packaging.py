@@ -25,6 +25,8 @@ ROSDEP_KEYS = {
     "tqdm": "python3-tqdm",
     "zstandard": None,
     "lz4": None,
+    "distributed": None,
+    "pyarrow": None,
 }
 
 
