@@ -471,8 +471,17 @@ def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
     record = Record(time=time, tc1=noise[0], tc2=noise[1], ref=None, source="noise", dt=0.002)
     with pytest.raises(
         EstimationError, match=r"noise: the first-order fit does not determine the time"
-    ):
+    ) as info:
         fit_output_model(record, ())
+    assert "are both signals thermocouples in one gas?" in str(info.value)
+    # Readings that differ in level beyond class 2: the refusal says so and what to do.
+    apart = replace(record, tc1=record.tc1 + 15.0, source="apart")
+    with pytest.raises(EstimationError, match=r"apart: the first-order fit") as info:
+        fit_output_model(apart, ())
+    assert "differ by +15 °C in mean level at 307.5 °C, beyond IEC 60584 class 2" in str(
+        info.value
+    )
+    assert "--effects calibration" in str(info.value)
     # A record of two sensors in one gas is not refused by the same check.
     sim = simulate_effect(None, "multisine", duration=4.0, noise_percent=1.0, seed=3)
     good = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="good", dt=sim.dt)

@@ -50,7 +50,12 @@ from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
 from ..effects.chain import SensorChain
 from ..errors import EstimationError
-from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
+from ..tolerance import (
+    CLASS2_GAIN,
+    CLASS2_MARGIN,
+    CLASS2_OFFSET_C,
+    class2_level_tolerance_c,
+)
 
 if TYPE_CHECKING:
     from ..diagnose import Diagnosis
@@ -382,6 +387,25 @@ def _loose_taus(fit: ModelFit) -> list[str]:
     return loose
 
 
+def _level_disagreement(tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> str:
+    """The readings' difference in mean level when it lies beyond class 2, else ''.
+
+    Two first-order lags of one gas read the same mean, so a difference beyond what two
+    class-2 sensors may show (by :data:`~tcomp_core.tolerance.CLASS2_MARGIN`) is a calibration
+    the refused fit had no way to explain.
+    """
+    difference = float(np.mean(tc1) - np.mean(tc2))
+    level = 0.5 * float(np.mean(tc1) + np.mean(tc2))
+    tolerance = class2_level_tolerance_c(level)
+    if not abs(difference) > CLASS2_MARGIN * tolerance:
+        return ""
+    return (
+        f"; the readings differ by {difference:+.3g} °C in mean level at {level:.4g} °C, "
+        f"beyond IEC 60584 class 2 ({tolerance:.2g} °C there): correct one sensor's "
+        "calibration, or compensate with --effects calibration, and rerun"
+    )
+
+
 def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
     """Refuse to compensate on a fit whose τ the data do not determine (see the caller)."""
     loose = _loose_taus(fit)
@@ -394,7 +418,8 @@ def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
         f"{CLASS2_OFFSET_C:g} °C): correct "
         "one sensor's calibration and rerun"
         if {"gain", "offset_c"} <= found.keys()
-        else " (are both signals thermocouples in one gas?)"
+        else _level_disagreement(diagnosis.tc1, diagnosis.tc2)
+        or " (are both signals thermocouples in one gas?)"
     )
     raise EstimationError(
         f"{diagnosis.source}: the {what} does not determine the time constants "
