@@ -274,6 +274,7 @@ def test_a_generated_campaign_on_two_workers_follows_the_truth_and_survives_a_ki
         assert row["tau2"] == pytest.approx(truth.tau2, rel=0.05), (truth, row["tau2"])
         assert row["verdict"] == truth.effect, (truth, row["verdict"])
         assert Path(row["output"]).is_dir()
+        assert row["window_length_s"] == pytest.approx(10.0)  # diagnosed whole: its length
     report = result.report.read_text()
     assert "fouling</td><td>tau1" in report and "steady</td><td>tau1" not in report
     assert "steady: steady__day02: none → conduction" in report

@@ -149,13 +149,16 @@ def run_recording(
             recording.path, options.window_s, topics=topics, columns=config.columns
         )
         starts: dict[int, float] = {}
+        spans: dict[int, float] = {}  # a window's record length, s (a whole record's too)
         frames: list[str] = []
 
         def windows():
             for window in reader:
-                if window.record is not None:
-                    starts[window.index] = float(window.record.time[0]) - window.start_s
-                    frames.append(window.record.frame_id)
+                record = window.record
+                if record is not None:
+                    starts[window.index] = float(record.time[0]) - window.start_s
+                    spans[window.index] = float(record.time[-1] - record.time[0]) + record.dt
+                    frames.append(record.frame_id)
                 yield window
 
         rows: list[WindowResult] = []
@@ -173,7 +176,9 @@ def run_recording(
             entry["verdict"] = f"failed: {exc}"
         origin = min(starts.values()) if starts else math.nan
         entry["probe"] = options.probe.probe(recording, topics[0], frames[0] if frames else "")
-        entry["windows"] = [_window_row(row.summary(), origin) for row in rows]
+        entry["windows"] = [
+            _window_row(row.summary(), origin, spans.get(row.index)) for row in rows
+        ]
     except (TcompError, ValueError, OSError) as exc:
         entry["error"] = " ".join(str(exc).split())
         entry["seconds"] = time.perf_counter() - started
@@ -208,14 +213,20 @@ def _diagnose_on_cluster(windows: Iterable[Window]) -> Iterator[WindowResult]:
             yield pending.popleft().result()
 
 
-def _window_row(summary: dict[str, Any], origin_s: float) -> dict[str, Any]:
-    """A window's diagnosis as a table row: absolute start, τ with intervals, effects."""
+def _window_row(
+    summary: dict[str, Any], origin_s: float, span_s: float | None = None
+) -> dict[str, Any]:
+    """A window's diagnosis as a table row: absolute start, τ with intervals, effects.
+
+    The length is the window's (``span_s``, what its record covers, when the window has no
+    finite length: a recording diagnosed whole).
+    """
     low_high = {name: summary[f"{name}_95"] or [None, None] for name in ("tau1", "tau2")}
     start = summary["start_s"]
     return {
         "window": summary["index"],
         "window_start_s": origin_s + start if np.isfinite(origin_s) else start,
-        "window_length_s": summary["length_s"],
+        "window_length_s": summary["length_s"] if summary["length_s"] is not None else span_s,
         "samples": summary["samples"],
         "verdict": summary["verdict"] or "",
         "effects": "+".join(summary["effects"]),
