@@ -75,10 +75,13 @@ def test_a_glob_finds_the_recordings_it_matches_and_a_glob_matching_nothing_is_a
         find_recordings([str(tmp_path / "*" / "nothing*.csv")])
 
 
-def test_the_campaign_output_inside_an_input_is_not_walked(tmp_path):
+def test_the_campaign_output_inside_an_input_is_not_walked(tmp_path, monkeypatch):
     _csv(tmp_path / "p" / "day1.csv")
     _csv(tmp_path / "out" / "recordings" / "p__day1.csv")
     found = find_recordings([tmp_path], exclude=tmp_path / "out")
+    assert [r.name for r in found] == ["p__day1.csv"]
+    monkeypatch.chdir(tmp_path)  # relative paths, as typed: `tcomp campaign . -o out`
+    found = find_recordings(["."], exclude=Path("out").resolve())
     assert [r.name for r in found] == ["p__day1.csv"]
 
 

@@ -156,9 +156,11 @@ def _read_mapping(path: Path) -> tuple[tuple[str, str], ...]:
 def _walk(directory: Path, exclude: Path | None) -> list[Path]:
     """Recordings under ``directory``: bag directories are not entered."""
     found: list[Path] = []
+    exclude = exclude.resolve() if exclude is not None else None
     for root, dirs, files in os.walk(directory):
         here = Path(root)
-        if exclude is not None and (here == exclude or exclude in here.parents):
+        where = here.resolve()
+        if exclude is not None and (where == exclude or exclude in where.parents):
             dirs[:] = []
             continue
         if is_bag_directory(here):
