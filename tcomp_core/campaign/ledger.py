@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from ..io.outputs import atomic_output
 from ..io.paths import bag_files, is_bag_directory
 from .inputs import Recording
 
@@ -38,11 +38,9 @@ def _files(path: Path) -> list[Path]:
 
 
 def write_entry(path: Path, entry: Mapping[str, Any]) -> None:
-    """Write a result atomically (a temporary sibling renamed into place)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.partial-{os.getpid()}")
-    temporary.write_text(json.dumps(entry, allow_nan=True))
-    os.replace(temporary, path)
+    """Write a result atomically (:func:`~tcomp_core.io.atomic_output`), replacing any."""
+    with atomic_output(path, overwrite=True) as temporary:
+        temporary.write_text(json.dumps(entry, allow_nan=True))
 
 
 class Ledger:

@@ -29,6 +29,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..htmlpage import bullet_list, image, page, section, table
+from ..io.outputs import atomic_output
 
 __all__ = [
     "JUMP_FACTOR",
@@ -325,9 +326,8 @@ def write_report(
             )
         )
     text = page("tcomp campaign", "\n".join(parts))
-    temporary = path.with_name(f".{path.name}.partial")
-    temporary.write_text(text, encoding="utf8")
-    temporary.replace(path)
+    with atomic_output(path, overwrite=True) as temporary:
+        temporary.write_text(text, encoding="utf8")
     return path
 
 

@@ -17,6 +17,8 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from ..io.outputs import atomic_output
+
 __all__ = ["SCHEMA_FIELDS", "campaign_rows", "read_table", "write_table"]
 
 #: (column, pyarrow type name) in table order.
@@ -100,7 +102,7 @@ def write_table(rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:
     """Write ``campaign.parquet`` and ``campaign.csv`` in ``out_dir``; returns their paths.
 
     Rows are sorted by probe, window start and recording; both files are replaced whole
-    (written under a temporary name first).
+    (:func:`~tcomp_core.io.atomic_output`).
     """
     import pyarrow as pa
     import pyarrow.csv as pa_csv
@@ -120,13 +122,10 @@ def write_table(rows: list[dict[str, Any]], out_dir: Path) -> tuple[Path, Path]:
         {name: _column(name, kind, ordered) for name, kind in SCHEMA_FIELDS}, schema=schema
     )
     parquet, csv = out_dir / "campaign.parquet", out_dir / "campaign.csv"
-    for path, write in (
-        (parquet, lambda p: pq.write_table(table, p)),
-        (csv, lambda p: pa_csv.write_csv(table, p)),
-    ):
-        temporary = path.with_name(f".{path.name}.partial")
-        write(temporary)
-        temporary.replace(path)
+    with atomic_output(parquet, overwrite=True) as temporary:
+        pq.write_table(table, temporary)
+    with atomic_output(csv, overwrite=True) as temporary:
+        pa_csv.write_csv(table, temporary)
     return parquet, csv
 
 
