@@ -243,6 +243,8 @@ def _diagnosis_with(effects, intervals, expected=(), identification=None, taus=(
         expected_physics=list(expected),
         eval_cutoff_hz=50.0,
         identifiability=[],
+        tc1=np.full(100, 300.0),  # one level: readings no calibration sets apart
+        tc2=np.full(100, 300.0),
     )
 
 
