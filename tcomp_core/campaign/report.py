@@ -174,11 +174,17 @@ def verdict_changes(series: dict[str, list[RecordingPoint]]) -> list[dict[str, A
     return changes
 
 
+def _date(seconds: float) -> dt.datetime | None:
+    """A window start as a UTC date when it is epoch seconds (a bag stamp), else None."""
+    if math.isfinite(seconds) and seconds > EPOCH_S:
+        return dt.datetime.fromtimestamp(seconds, tz=dt.UTC)
+    return None
+
+
 def _times(starts: Sequence[float]) -> list[Any]:
-    """Window starts as dates when they are epoch seconds, else as seconds."""
-    if starts and all(math.isfinite(s) and s > EPOCH_S for s in starts):
-        return [dt.datetime.fromtimestamp(s, tz=dt.UTC) for s in starts]
-    return list(starts)
+    """Window starts as dates when they all are epoch seconds, else as seconds."""
+    dates = [_date(s) for s in starts]
+    return dates if starts and all(d is not None for d in dates) else list(starts)
 
 
 def _trend_figure(probe: str, rows: Sequence[dict[str, Any]]) -> Figure:
@@ -304,13 +310,22 @@ def write_report(
         by_probe[row.get("probe") or ""].append(row)
     for probe, points in series.items():
         listing = table(
-            ["recording", "start", "τ1 (s)", "τ2 (s)", "model error (%)", "verdict"],
+            [
+                "recording",
+                "start",
+                "τ1 (s)",
+                "τ2 (s)",
+                "first-order error (%)",
+                "final model error (%)",
+                "verdict",
+            ],
             [
                 [
                     p.recording,
                     _start_text(p.start_s),
                     p.tau1,
                     p.tau2,
+                    p.base_error_pct,
                     p.error_pct,
                     p.verdict or "failed",
                 ]
@@ -332,8 +347,7 @@ def write_report(
 
 
 def _start_text(seconds: float) -> str:
-    if not math.isfinite(seconds):
-        return "n/a"
-    if seconds > EPOCH_S:
-        return dt.datetime.fromtimestamp(seconds, tz=dt.UTC).strftime("%Y-%m-%d %H:%M:%S")
-    return f"{seconds:.3f} s"
+    date = _date(seconds)
+    if date is not None:
+        return date.strftime("%Y-%m-%d %H:%M:%S")
+    return f"{seconds:.3f} s" if math.isfinite(seconds) else "n/a"
