@@ -53,7 +53,12 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from tcomp_core.compensation import compensate, default_estimate, output_model_from_diagnosis
+from tcomp_core.compensation import (
+    compensate,
+    default_estimate,
+    default_first_order_failure,
+    output_model_from_diagnosis,
+)
 from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
@@ -115,17 +120,19 @@ def compare(
     what ``tcomp reconstruct`` gives without ``--effects``.
     """
     started = time.perf_counter()
-    diagnosis = diagnose(record)
     # As fit_output_model builds it for reconstruct and process: the default path's τ where
-    # the model applies nothing.
+    # the model applies nothing, and whether its first order fails the record.
     plain = default_estimate(record)
-    plain_taus = None if plain is None else (plain.tau1, plain.tau2)
+    plain_taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
     lines = () if plain is None else plain.lines
+    failure = default_first_order_failure(record, plain)
+    diagnosis = diagnose(record, published_taus=plain_taus)
     output = output_model_from_diagnosis(
         diagnosis,
         origin_s=float(record.time[0]),
         first_order_taus=plain_taus,
         first_order_lines=lines,
+        first_order_failure=failure,
     )
     base = diagnosis.base
     found = diagnosis.final.identification
@@ -136,6 +143,8 @@ def compare(
         "pieces": [piece.summary() for piece in output.pieces],
         "band_c": None if found is None else found.band_c,
         "change_c": None if found is None else found.change_c,
+        "published_change_c": None if found is None else found.published_change_c,
+        "first_order_fails": bool(failure),
         "tau": [base.tau1, base.tau2, diagnosis.final.tau1, diagnosis.final.tau2],
     }
     if ungated_too:
@@ -146,6 +155,7 @@ def compare(
             origin_s=float(record.time[0]),
             first_order_taus=plain_taus,
             first_order_lines=lines,
+            first_order_failure=failure,
         )
         row["ungated_output"] = ungated.name()
         gas = compensate(ungated, record.time, record.tc1, record.tc2, record.dt).gas

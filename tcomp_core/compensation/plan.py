@@ -70,6 +70,7 @@ __all__ = [
     "OutputModel",
     "Piece",
     "default_estimate",
+    "default_first_order_failure",
     "default_taus",
     "fit_output_model",
     "output_model_from_diagnosis",
@@ -155,6 +156,11 @@ class OutputModel:
         default first-order path found them (:func:`tcomp_core.lines.foreign_lines`): an
         offline reconstruction takes them off the carrying channel unless an applied
         ``interference`` piece takes its line off itself.
+    first_order_failure : str
+        How the default path's first-order model fails the record (its two sensors'
+        reconstructions disagree beyond their noise:
+        :func:`tcomp_core.fusion.first_order_adequacy`); '' when it describes the record or
+        was not checked.
     """
 
     effects: tuple[str, ...]
@@ -170,6 +176,7 @@ class OutputModel:
     at_bound: tuple[str, ...] = field(default=())
     identification: Identification | None = None
     lines: tuple[ForeignLine, ...] = ()
+    first_order_failure: str = ""
 
     @property
     def tau1(self) -> float:
@@ -266,6 +273,7 @@ class OutputModel:
             "identification": (
                 None if self.identification is None else self.identification.summary()
             ),
+            "first_order_failure": self.first_order_failure,
         }
 
     def describe(self, causal_stream: bool = False) -> list[str]:
@@ -286,7 +294,16 @@ class OutputModel:
                 f"a change of {found.change_c:.3g} degC rms; the sensors' first-order "
                 f"disagreement {found.evidence_c:.3g} degC rms"
             )
+            if math.isfinite(found.published_change_c):
+                lines.append(
+                    f"  against the default first-order gas it changes the gas by "
+                    f"{found.published_change_c:.3g} degC rms"
+                )
             lines += [f"    {check.describe()}" for check in found.checks]
+        if self.first_order_failure:
+            lines.append(
+                f"  the default first order fails this record: {self.first_order_failure}"
+            )
         return lines
 
 
@@ -311,6 +328,7 @@ def output_model_from_diagnosis(
     origin_s: float = 0.0,
     first_order_taus: tuple[float, float] | None = None,
     first_order_lines: Sequence[ForeignLine] = (),
+    first_order_failure: str = "",
 ) -> OutputModel:
     """The output model of a diagnosis's (or fit's) final model.
 
@@ -327,6 +345,16 @@ def output_model_from_diagnosis(
         back to the diagnosis's own first-order fit (no gain between the sensors).
     first_order_lines : sequence of ForeignLine
         The lines the default path found one sensor carrying alone (:attr:`OutputModel.lines`).
+    first_order_failure : str
+        How the default path's first order fails the record ('' when it describes it:
+        :func:`default_first_order_failure`). A model whose effects change the gas by less
+        than its band is then still applied when its change against the default path's
+        first-order gas (:attr:`~tcomp_core.diagnose.identification.Identification.
+        published_change_c`, the diagnosis run with ``published_taus``) stands beyond the
+        band: the gas a refusal falls back to is known to be wrong, and the model's is known
+        to within its band (conduction to lagging supports put the default τ 144 % long and
+        its gas 135 % off; the model's τ was within 3 % and its gas 7 % off, its effects'
+        own change of 2.8 degC rms inside a band of +-3.6).
 
     Raises
     ------
@@ -348,7 +376,7 @@ def output_model_from_diagnosis(
     base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
     params = dict(final.params)
     pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
-    refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt)
+    refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt, first_order_failure)
     if loose and not refusal:
         refusal = f"the fit does not determine the time constants ({'; '.join(loose)})"
     if refusal:  # not trusted with the gas: every piece first order, on first order's tau
@@ -374,6 +402,7 @@ def output_model_from_diagnosis(
         at_bound=tuple(final.at_bound),
         identification=final.identification,
         lines=tuple(first_order_lines),
+        first_order_failure=first_order_failure,
     )
 
 
@@ -429,12 +458,18 @@ def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
 
 
 def _refusal(
-    final: ModelFit, pieces: tuple[Piece, ...], base_taus: tuple[float, float], dt: float
+    final: ModelFit,
+    pieces: tuple[Piece, ...],
+    base_taus: tuple[float, float],
+    dt: float,
+    first_order_failure: str = "",
 ) -> str:
     """Why a fit may not make the gas ('' when it may).
 
     It may not when it is no physical sensor, when a parameter of an applied effect is not
-    pinned down by the data, or when its change to the gas is within its own uncertainty.
+    pinned down by the data, or when its change to the gas is within its own uncertainty:
+    the change its effects make, or, where the default first order fails the record
+    (``first_order_failure``), the change against the default path's gas.
     """
     implausible = Model(tuple(final.effects), dict(final.params)).implausible(base_taus, dt)
     if implausible:
@@ -474,7 +509,8 @@ def _refusal(
             f"which the two sensors' first-order gas disagree: the correction would rest on the "
             f"model's form, not on the data"
         )
-    if found.band_exceeds_change:
+    beyond_default = bool(first_order_failure) and not found.band_exceeds_published_change
+    if found.band_exceeds_change and not beyond_default:
         why = f"; {found.band_note}" if found.band_note else ""
         return (
             f"the 95 % band on the gas (+-{found.band_c:.3g} degC rms, refits leaving out one "
@@ -514,14 +550,46 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
     """
     from ..diagnose import diagnose, fit_effects
 
-    diagnosis = diagnose(record) if effects is None else fit_effects(record, effects)
     plain = default_estimate(record)
+    taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
+    diagnosis = (
+        diagnose(record, published_taus=taus)
+        if effects is None
+        else fit_effects(record, effects, published_taus=taus)
+    )
     return output_model_from_diagnosis(
         diagnosis,
         origin_s=float(record.time[0]),
-        first_order_taus=None if plain is None else (plain.tau1, plain.tau2),
+        first_order_taus=taus,
         first_order_lines=() if plain is None else plain.lines,
+        first_order_failure=default_first_order_failure(record, plain),
     )
+
+
+def default_first_order_failure(record: Record, plain: Estimate | None) -> str:
+    """How the default path's first order (``plain``) fails ``record``; '' if it does not.
+
+    The two sensors' first-order reconstructions at its τ, tc2 put on tc1's scale by its
+    fitted gain, disagree beyond their noise by a material share of the gas's fluctuation, or
+    their phase goes beyond what two first-order lags allow
+    (:func:`tcomp_core.fusion.first_order_adequacy`). The gain is taken out because a
+    calibration is no failure of the dynamics: two sensors 3 % apart in gain disagree by 3 %
+    of the signal at any τ (a calibration read as radiation was applied on that ground and put
+    the gas 7.5 -> 12.2 % off).
+    """
+    from ..fusion import first_order_adequacy
+
+    if plain is None:
+        return ""
+    gain = float(plain.params.get("gain", 1.0))
+    scaled = record.tc2 * (gain if math.isfinite(gain) and gain > 0.0 else 1.0)
+    try:
+        misfit, gas_std_c = first_order_adequacy(
+            record.tc1, scaled, record.dt, float(plain.tau1), float(plain.tau2)
+        )
+    except (ValueError, np.linalg.LinAlgError):
+        return ""
+    return misfit.describe(gas_std_c) if misfit.material(gas_std_c) else ""
 
 
 def default_estimate(record: Record) -> Estimate | None:

@@ -28,7 +28,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..choices import parse_effect_list
-from ..compensation import default_taus, output_model_from_diagnosis
+from ..compensation import (
+    default_estimate,
+    default_first_order_failure,
+    output_model_from_diagnosis,
+)
 from ..io import Record
 from ..workers import JobRunner, ProcessRunner
 from .pipeline import diagnose, fit_effects
@@ -97,17 +101,24 @@ def run_job(
     """
     started = _time.perf_counter()
     try:
+        # The default path's τ: what the output model falls back to, and measures against.
+        plain = default_estimate(record) if output else None
+        published = None if plain is None else (float(plain.tau1), float(plain.tau2))
         if effects is None:
-            fitted = diagnose(record)
+            fitted = diagnose(record, published_taus=published)
             suspect = next((item for item in fitted.suspects if item.significant), None)
         else:
-            fitted = fit_effects(record, effects)
+            fitted = fit_effects(record, effects, published_taus=published)
             suspect = None
             if find_suspect:
                 suspects = diagnose(record, max_effects=1).suspects
                 suspect = next((item for item in suspects if item.significant), None)
         model = (
-            output_model_from_diagnosis(fitted, first_order_taus=default_taus(record))
+            output_model_from_diagnosis(
+                fitted,
+                first_order_taus=published,
+                first_order_failure=default_first_order_failure(record, plain),
+            )
             if output
             else None
         )

@@ -94,6 +94,9 @@ class Evaluator:
         τ1, τ2 the base fit started from, s: with the fit's own τ, where the identification
         measures the sensors' first-order disagreement (:func:`~.identification.identify`;
         None: the context's ``base_taus_s``).
+    published_taus_s : (float, float) or None
+        τ1, τ2 the default first-order path publishes for the record, s: the identification
+        also measures the final model's change against first order there.
     """
 
     data: PreparedData
@@ -102,6 +105,7 @@ class Evaluator:
     cutoff_hz: float
     fit_cutoff_hz: float | None = None
     start_taus_s: tuple[float, float] | None = None
+    published_taus_s: tuple[float, float] | None = None
     _sos: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -241,6 +245,7 @@ class Evaluator:
                 self.scored_mask(model)[:-1],
                 lambda rows: model.fit(*self._fit_inputs, rows, held),
                 level_free=level_free,
+                published_taus=self.published_taus_s,
             )
         return replace(
             fit,

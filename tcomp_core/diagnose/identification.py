@@ -61,6 +61,12 @@ smaller of those at the initial τ and at the fit's own: a τ far off inflates i
 steps where the fit's own τ leave 9 °C): every correction is inferred from that disagreement,
 and a correction many times larger is carried by the model's form (a common part both sensors
 would share, which the two signals cannot see).
+
+Given the τ the default first-order path publishes (``published_taus``), the change is also
+measured against first order there (:attr:`Identification.published_change_c`): what applying
+the model changes for a user. It decides only where that default first order demonstrably fails
+the record (:mod:`tcomp_core.compensation.plan`); elsewhere a τ the model moves stays the
+first-order path's business, as above.
 """
 
 from __future__ import annotations
@@ -230,6 +236,13 @@ class Identification:
         first-order model lacks.
     band_note : str
         Why the band is infinite ('' otherwise).
+    published_change_c : float
+        rms change the model makes to the gas against the first-order model at the time
+        constants the default path publishes (``published_taus`` of :func:`identify`), degrees
+        C; nan when they were not given. What applying the model changes for a user: when the
+        default path's first order demonstrably fails the record
+        (:func:`tcomp_core.fusion.first_order_adequacy`), the model is applied if this change,
+        not only its effects', stands beyond the band (:mod:`tcomp_core.compensation.plan`).
     """
 
     checks: tuple[ParameterCheck, ...]
@@ -237,6 +250,7 @@ class Identification:
     change_c: float
     evidence_c: float = math.nan
     band_note: str = ""
+    published_change_c: float = math.nan
 
     def undetermined(self, effects: tuple[str, ...] | None = None) -> tuple[ParameterCheck, ...]:
         """The parameters the fit does not determine (singular, or on a bound).
@@ -270,6 +284,11 @@ class Identification:
         return not (self.band_c < self.change_c)
 
     @property
+    def band_exceeds_published_change(self) -> bool:
+        """Whether the band is at least as wide as the change against the published first order."""
+        return not (self.band_c < self.published_change_c)
+
+    @property
     def extrapolates(self) -> bool:
         """Whether the change exceeds :data:`MAX_CHANGE_PER_EVIDENCE` times the evidence."""
         return bool(self.change_c > MAX_CHANGE_PER_EVIDENCE * self.evidence_c)
@@ -279,6 +298,7 @@ class Identification:
         return {
             "gas_band_c": _finite(self.band_c),
             "gas_change_c": _finite(self.change_c),
+            "gas_change_against_published_c": _finite(self.published_change_c),
             "evidence_c": _finite(self.evidence_c),
             "band_note": self.band_note,
             "parameters": [check.summary() for check in self.checks],
@@ -418,6 +438,7 @@ def identify(
     refit: Callable[[NDArray[np.bool_]], Model],
     *,
     level_free: bool = False,
+    published_taus: tuple[float, float] | None = None,
 ) -> Identification:
     """Check a fitted model's effect parameters and its gas band (see the module docstring).
 
@@ -442,6 +463,9 @@ def identify(
     level_free : bool
         Compare the change and the band with their means removed (the level stays first
         order's, as for a calibration).
+    published_taus : (float, float), optional
+        τ1, τ2 the default first-order path publishes for the same record, s: the change is
+        measured against first order there too (:attr:`Identification.published_change_c`).
     """
 
     def gas_of(fitted: Model) -> NDArray[np.float64]:
@@ -449,18 +473,22 @@ def identify(
         return lowpass(0.5 * (gas1 + gas2))
 
     gas = gas_of(model)
+
+    def change_against(taus: tuple[float, float]) -> float:
+        """The model's gas less first order's at ``taus``: rms in the comparison band."""
+        change = gas - gas_of(Model((), {"tau1": taus[0], "tau2": taus[1]}))
+        return _rms(change - np.mean(change[keep]) if level_free else change, keep)
+
     disagreements: list[NDArray[np.float64]] = []
-    for taus in ((model.tau1, model.tau2), base_taus):
+    for taus in (base_taus, (model.tau1, model.tau2)):
         first1, first2 = _gas_pair(
             Model((), {"tau1": taus[0], "tau2": taus[1]}), readings, context
         )
-        if not disagreements:  # the fit's own τ: what its effects change
-            change = gas - lowpass(0.5 * (first1 + first2))
         disagreements.append(lowpass(first1 - first2))
     if level_free:
-        change = change - np.mean(change[keep])
         disagreements = [values - np.mean(values[keep]) for values in disagreements]
-    change_c = _rms(change, keep)
+    change_c = change_against((model.tau1, model.tau2))  # the fit's own τ: what its effects do
+    published_change_c = math.nan if published_taus is None else change_against(published_taus)
     evidence_c = min(_rms(values, keep) for values in disagreements)
     band_c, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free)
     owned = {
@@ -508,4 +536,5 @@ def identify(
         change_c=change_c,
         evidence_c=evidence_c,
         band_note=band_note,
+        published_change_c=published_change_c,
     )

@@ -370,7 +370,9 @@ def _diagnosis(
     )
 
 
-def _base_fit(record: Record) -> tuple[Evaluator, Model, ModelFit, FailureAnalysis]:
+def _base_fit(
+    record: Record, published_taus: tuple[float, float] | None = None
+) -> tuple[Evaluator, Model, ModelFit, FailureAnalysis]:
     """Prepare the record, fit and score the base model, and say where it fails.
 
     Every effect is then judged against the base model's fitted τ, the record's first-order τ
@@ -387,7 +389,7 @@ def _base_fit(record: Record) -> tuple[Evaluator, Model, ModelFit, FailureAnalys
     """
     data = prepare(record)
     taus = _initial_taus(data)
-    evaluator = _evaluator(data, taus)
+    evaluator = replace(_evaluator(data, taus), published_taus_s=published_taus)
     model, base = _fit_base(evaluator, taus)
     fitted = (float(model.tau1), float(model.tau2))
     if all(math.isfinite(tau) and tau > 0.0 for tau in fitted):
@@ -402,6 +404,7 @@ def diagnose(
     *,
     candidates: Sequence[str] = EFFECT_NAMES,
     max_effects: int = MAX_EFFECTS,
+    published_taus: tuple[float, float] | None = None,
 ) -> Diagnosis:
     """Compare the first-order model with a record, find where it fails and what is missing.
 
@@ -414,6 +417,10 @@ def diagnose(
         Effects to consider (default all of :data:`~tcomp_core.effects.EFFECT_NAMES`).
     max_effects : int
         Most effects added on top of the base model.
+    published_taus : (float, float), optional
+        τ1, τ2 the default first-order path publishes for the record, s: the final model's
+        identification measures its change to the gas against first order there too
+        (:attr:`~.identification.Identification.published_change_c`).
 
     Returns
     -------
@@ -427,7 +434,7 @@ def diagnose(
         If not even the base model can be fitted.
     """
     candidates = check_effect_names(candidates)
-    evaluator, model, base, failure = _base_fit(record)
+    evaluator, model, base, failure = _base_fit(record, published_taus)
     staircase = _staircase(evaluator, model, base, candidates, max_effects)
     steps = staircase.steps
     steps[-1] = evaluator.refit_whole(steps[-1])
@@ -447,12 +454,17 @@ def diagnose(
     )
 
 
-def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
+def fit_effects(
+    record: Record,
+    effects: Sequence[str],
+    *,
+    published_taus: tuple[float, float] | None = None,
+) -> Diagnosis:
     """Fit the base model plus a chosen set of effects, added in the order given.
 
     Every step is scored like :func:`diagnose` scores it; ``steps`` holds the base model and
     one fit per effect added, ``suspects`` the same fits as suspects, and ``verdict`` the
-    last effect (``"none"`` for an empty set).
+    last effect (``"none"`` for an empty set). ``published_taus`` as for :func:`diagnose`.
 
     Raises
     ------
@@ -460,7 +472,7 @@ def fit_effects(record: Record, effects: Sequence[str]) -> Diagnosis:
         If a fit fails.
     """
     effects = check_effect_names(effects)
-    evaluator, model, base, failure = _base_fit(record)
+    evaluator, model, base, failure = _base_fit(record, published_taus)
     steps, suspects = [base], []
     for name in effects:
         try:

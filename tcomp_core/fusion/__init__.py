@@ -69,7 +69,7 @@ filter), :mod:`.record` (:func:`fuse`).
 from __future__ import annotations
 
 from .causal import CausalFuser
-from .fitting import SignalModelFits, fit_fusion_model, fit_signal_models
+from .fitting import SignalModelFits, first_order_adequacy, fit_fusion_model, fit_signal_models
 from .kalman import SteadyState, steady_state
 from .record import FusionResult, fuse
 from .recursion import linear_recursion
@@ -93,6 +93,7 @@ __all__ = [
     "StateSpace",
     "SteadyState",
     "butterworth_dynamics",
+    "first_order_adequacy",
     "fit_fusion_model",
     "fit_signal_models",
     "fuse",

@@ -31,6 +31,7 @@ __all__ = [
     "FIT_FAILURES",
     "QUICK_MODELS",
     "SignalModelFits",
+    "first_order_adequacy",
     "fit_fusion_model",
     "fit_signal_models",
 ]
@@ -555,6 +556,39 @@ def _likelihood_stretch(n: int) -> slice:
     """The middle :data:`MAX_LIKELIHOOD_SAMPLES` of ``n`` samples (all of a shorter record)."""
     start = max(0, (n - MAX_LIKELIHOOD_SAMPLES) // 2)
     return slice(start, start + MAX_LIKELIHOOD_SAMPLES)
+
+
+def first_order_adequacy(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    tau1: float,
+    tau2: float,
+) -> tuple[Misfit, float]:
+    """Whether the first-order model at τ1, τ2 describes a pair of readings.
+
+    Parameters
+    ----------
+    tc1, tc2 : ndarray, shape (N,)
+        Readings, degrees C, every ``dt`` seconds.
+    dt : float
+        Sample interval, s.
+    tau1, tau2 : float
+        The first-order model's time constants, s.
+
+    Returns
+    -------
+    misfit : Misfit
+        The sensors' first-order disagreement beyond their noise
+        (:func:`~.adequacy.first_order_misfit`, noise levels from the model).
+    gas_std_c : float
+        The gas's fluctuation (Eq. (7)'s reconstruction less its noise), degrees C:
+        ``misfit.material(gas_std_c)`` says whether the model fails the record.
+    """
+    first = np.asarray(tc1, dtype=np.float64)
+    second = np.asarray(tc2, dtype=np.float64)
+    fitting = _prepare(first, second, dt, tau1, tau2, None, None)
+    return fitting.misfit, math.sqrt(fitting.scale)
 
 
 def _prepare(
