@@ -75,6 +75,20 @@ def test_a_glob_finds_the_recordings_it_matches_and_a_glob_matching_nothing_is_a
         find_recordings([str(tmp_path / "*" / "nothing*.csv")])
 
 
+def test_a_recording_reached_from_two_inputs_is_one_recording(tmp_path, monkeypatch):
+    _csv(tmp_path / "cellA" / "probe2" / "day1.csv")
+    _csv(tmp_path / "cellA" / "probe2" / "day2.csv")
+    monkeypatch.chdir(tmp_path)
+    found = find_recordings(
+        [
+            tmp_path / "cellA",
+            "cellA/probe2/day1.csv",  # relative: the same file as the walk's
+            str(tmp_path / "cellA" / "*" / "day*.csv"),
+        ]
+    )
+    assert [r.name for r in found] == ["probe2__day1.csv", "probe2__day2.csv"]
+
+
 def test_the_campaign_output_inside_an_input_is_not_walked(tmp_path, monkeypatch):
     _csv(tmp_path / "p" / "day1.csv")
     _csv(tmp_path / "out" / "recordings" / "p__day1.csv")

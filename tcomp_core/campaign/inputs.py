@@ -243,8 +243,13 @@ def find_recordings(
         raise DataError(
             f"{', '.join(map(str, inputs))}: holds no bag directory, .mcap or .csv file"
         )
+    # One recording reached from two inputs (a directory and a file in it) is one recording,
+    # named from the first input that reached it.
+    unique: dict[Path, tuple[Path, Path]] = {}
+    for path, root in found:
+        unique.setdefault(path.resolve(), (path, root))
     recordings: list[Recording] = []
-    for path, root in dict.fromkeys(found):
+    for path, root in unique.values():
         name = _name(path, root)
         if rule.kind == "topic" and is_bag_directory(path):
             recordings += _per_namespace(path, name, tc1_topic, tc2_topic)
