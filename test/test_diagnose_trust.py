@@ -416,6 +416,35 @@ def test_a_coarse_adc_is_counted_in_the_noise_floor_not_called_an_effect():
     assert any("quantised in steps of 0.4" in note for note in found.notes)
 
 
+def test_a_support_transient_beyond_what_the_legs_let_through_is_no_conduction():
+    """Campaign draw 662 (tc2 three times noisier, no conduction) was read as conduction with
+    legs so long that wire 1's supports pass sech(9.8) = 1e-4 of their excess, and a start-up
+    transient of 103 degC on its reading: supports a million degrees off. Compensated with it,
+    the gas went 1.3 -> 9.3 % off."""
+    from tcomp_core.effects import Model
+    from tcomp_core.effects.conduction import MAX_SUPPORT_EXCESS_C, fin_sech
+
+    base = (0.0585, 0.27)
+    fitted = {"tau1": 0.0585, "tau2": 0.27, "tau_leg": 5.67, "tau_p": 0.393}
+    reason = Model(("conduction",), {**fitted, "mode1": 103.0, "mode2": 0.0}).implausible(base)
+    assert "wire 1's reading starts 103 degC off" in reason and "at most 2273 degC" in reason
+    # Wire 2's legs pass sech(4.6) = 2 %: 288 degC on its reading is 14 000 degC at the supports.
+    reason = Model(("conduction",), {**fitted, "mode1": 0.0, "mode2": 288.0}).implausible(base)
+    assert "wire 2's reading" in reason
+    # What the legs can pass from supports within any thermocouple's range is plausible, and
+    # so is any start on short legs (a window cut from a running record).
+    limit = fin_sech(math.sqrt(5.67 / 0.27)) * MAX_SUPPORT_EXCESS_C
+    within = {**fitted, "mode1": 0.0, "mode2": 0.9 * limit}
+    assert Model(("conduction",), within).implausible(base) == ""
+    short = {"tau1": 0.0303, "tau2": 0.1606, "tau_leg": 0.271, "tau_p": 2.46}
+    assert (
+        Model(("conduction",), {**short, "mode1": 120.0, "mode2": -80.0}).implausible(
+            (7.2 * 0.0303, 4.7 * 0.1606)
+        )
+        == ""
+    )
+
+
 def test_each_effect_bounds_how_far_tau_moves_and_conduction_its_conductance_ratio():
     from tcomp_core.effects import Model
     from tcomp_core.effects.conduction import MAX_KAPPA, fin_kappa

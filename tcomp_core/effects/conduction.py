@@ -53,6 +53,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
+from ..io.screening import VALID_RANGE_C
 from .base import Effect, FitContext, ParamSpec
 
 __all__ = ["FIN_TERMS", "Conduction", "fin_filter", "fin_kappa", "fin_length", "fin_sech"]
@@ -64,6 +65,9 @@ FIN_TERMS = 6
 FIN_ML_RANGE = (0.4, 7.0)
 #: Largest steady conductance ratio κ of a plausible fit (mL = 0.4 at the fit's own τ).
 MAX_KAPPA = 1.0 / (math.cosh(FIN_ML_RANGE[0]) - 1.0)
+#: Largest initial excess of the supports over their equilibrium, degrees C: the width of the
+#: range any thermocouple reading may take (:data:`tcomp_core.io.screening.VALID_RANGE_C`).
+MAX_SUPPORT_EXCESS_C = VALID_RANGE_C[1] - VALID_RANGE_C[0]
 
 
 def fin_kappa(fin_ml: float) -> float:
@@ -144,6 +148,12 @@ class Conduction(Effect):
     over 90 % of the junction's steady heat balance. A junction whose conductance to its
     supports is tens or hundreds of times its convective conductance reads the supports, not
     the gas: it is not a thermocouple in a flow, and such a fit has only traded τ for legs.
+    And when the supports' initial excess a reading shows, ``mode_i``, is more than their
+    share of the junction, sech(mL_i), can pass of :data:`MAX_SUPPORT_EXCESS_C`: supports
+    that far from equilibrium lie outside any thermocouple's range, and the fit has used the
+    transient to absorb a start-up mismatch (a noise-ratio record at 0.5 kHz was read as
+    conduction with mL1 = 9.8, mode1 = 103 degC where sech(9.8) lets through 0.25 degC at
+    most; compensated, its gas went 1.3 → 9.3 % off).
 
     How far τ may move from the first-order estimate is one-sided. Supports that lag the gas
     add a slow path the first-order fit absorbs into τ, which can then be many times the
@@ -177,11 +187,21 @@ class Conduction(Effect):
             tau = params.get(f"tau{index}", math.nan)
             if not tau > 0.0:
                 continue
-            kappa = fin_kappa(math.sqrt(params["tau_leg"] / tau))
+            fin_ml = math.sqrt(params["tau_leg"] / tau)
+            kappa = fin_kappa(fin_ml)
             if kappa > MAX_KAPPA:
                 return (
                     f"conduction: wire {index}'s conductance to its supports is {kappa:.3g}x "
                     f"its convective conductance (at most {MAX_KAPPA:.3g}x)"
+                )
+            share = fin_sech(fin_ml)
+            mode = abs(params.get(f"mode{index}", 0.0))
+            if mode > share * MAX_SUPPORT_EXCESS_C:
+                return (
+                    f"conduction: wire {index}'s reading starts {mode:.3g} degC off through "
+                    f"its supports' share sech(mL) = {share:.3g}, so the supports would start "
+                    f"{mode / share if share > 0.0 else math.inf:.3g} degC off their "
+                    f"equilibrium (at most {MAX_SUPPORT_EXCESS_C:.4g} degC)"
                 )
         return ""
 
