@@ -474,21 +474,22 @@ def identify(
 
     gas = gas_of(model)
 
-    def change_against(taus: tuple[float, float]) -> float:
-        """The model's gas less first order's at ``taus``: rms in the comparison band."""
-        change = gas - gas_of(Model((), {"tau1": taus[0], "tau2": taus[1]}))
+    def first_order(taus: tuple[float, float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        return _gas_pair(Model((), {"tau1": taus[0], "tau2": taus[1]}), readings, context)
+
+    def change_against(first1: NDArray[np.float64], first2: NDArray[np.float64]) -> float:
+        """The model's gas less the first-order gas ``first1``, ``first2``: rms, in band."""
+        change = gas - lowpass(0.5 * (first1 + first2))
         return _rms(change - np.mean(change[keep]) if level_free else change, keep)
 
-    disagreements: list[NDArray[np.float64]] = []
-    for taus in (base_taus, (model.tau1, model.tau2)):
-        first1, first2 = _gas_pair(
-            Model((), {"tau1": taus[0], "tau2": taus[1]}), readings, context
-        )
-        disagreements.append(lowpass(first1 - first2))
+    own = first_order((model.tau1, model.tau2))
+    disagreements = [lowpass(pair[0] - pair[1]) for pair in (own, first_order(base_taus))]
     if level_free:
         disagreements = [values - np.mean(values[keep]) for values in disagreements]
-    change_c = change_against((model.tau1, model.tau2))  # the fit's own τ: what its effects do
-    published_change_c = math.nan if published_taus is None else change_against(published_taus)
+    change_c = change_against(*own)  # at the fit's own τ: what its effects change
+    published_change_c = (
+        math.nan if published_taus is None else change_against(*first_order(published_taus))
+    )
     evidence_c = min(_rms(values, keep) for values in disagreements)
     band_c, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free)
     owned = {
