@@ -587,11 +587,11 @@ def first_order_adequacy(
     """
     first = np.asarray(tc1, dtype=np.float64)
     second = np.asarray(tc2, dtype=np.float64)
-    fitting = _prepare(first, second, dt, tau1, tau2, None, None)
-    return fitting.misfit, math.sqrt(fitting.scale)
+    base, misfit = _first_order_base(first, second, dt, tau1, tau2, None, None)
+    return misfit, math.sqrt(_gas_variance(first, second, base))
 
 
-def _prepare(
+def _first_order_base(
     first: NDArray[np.float64],
     second: NDArray[np.float64],
     dt: float,
@@ -599,8 +599,8 @@ def _prepare(
     tau2: float,
     sigma1: float | None,
     sigma2: float | None,
-) -> _Fitting:
-    """Noise levels, gas variance and spectral line shared by the fits of one record."""
+) -> tuple[FusionModel, Misfit]:
+    """The first-order base model (noise levels, its misfit) and that misfit."""
     s1, s2 = _noise_sigmas(first, second, (dt, tau1, tau2), sigma1, sigma2)
     misfit = first_order_misfit(first, second, dt, tau1, tau2, s1, s2)
     base = FusionModel(
@@ -613,6 +613,20 @@ def _prepare(
         q=1,
         misfit_c=misfit.excess_c,
     )
+    return base, misfit
+
+
+def _prepare(
+    first: NDArray[np.float64],
+    second: NDArray[np.float64],
+    dt: float,
+    tau1: float,
+    tau2: float,
+    sigma1: float | None,
+    sigma2: float | None,
+) -> _Fitting:
+    """Noise levels, gas variance and spectral line shared by the fits of one record."""
+    base, misfit = _first_order_base(first, second, dt, tau1, tau2, sigma1, sigma2)
     level = float(np.mean(first))
     likelihood = _likelihood_stretch(first.size)
     return _Fitting(
