@@ -137,13 +137,48 @@ def check_excitation(
         )
 
 
-#: Segments the shared-signal check averages (Hann-windowed, not overlapping): independent
-#: noise then stays below :data:`SHARED_COHERENCE` in every bin (P = 0.5^31 per bin).
-SHARED_SEGMENTS = 32
+#: Segments the shared-signal check averages (Hann-windowed, not overlapping), finest
+#: resolution first: independent noise stays below :data:`SHARED_COHERENCE` in every bin with
+#: 32 segments (P = 0.5^31 per bin); 8 segments of four times the length resolve a slow gas
+#: (ramps of a few seconds, whose 32 segments at a decimated rate put their first bin above
+#: the gas's band) and are held to the coherence that keeps that chance per bin.
+SHARED_SEGMENTS = (32, 8)
 #: Samples per segment at least (a record shorter than 32 of them is not checked).
 SHARED_MIN_LENGTH = 64
-#: Magnitude-squared coherence that two sensors in one gas reach in some band.
+#: Magnitude-squared coherence that two sensors in one gas reach in some band, with 32
+#: segments; with n segments the bound of equal chance, 1 − (1 − 0.5)^(31/(n − 1)).
 SHARED_COHERENCE = 0.5
+
+
+def _shared_threshold(segments: int) -> float:
+    """Coherence independent noise exceeds in a bin with the chance 32 segments give 0.5."""
+    chance = (1.0 - SHARED_COHERENCE) ** (SHARED_SEGMENTS[0] - 1)
+    return 1.0 - chance ** (1.0 / (segments - 1))
+
+
+def _best_coherence(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], segments: int
+) -> tuple[float, int, int] | None:
+    """Highest magnitude-squared coherence over ``segments`` segments: (value, bin, length).
+
+    None when the segments would be shorter than :data:`SHARED_MIN_LENGTH`.
+    """
+    length = 2 ** math.floor(math.log2(max(tc1.size // segments, 1)))
+    if length < SHARED_MIN_LENGTH:
+        return None
+    used = length * segments
+    window = np.hanning(length)
+    spectra = []
+    for values in (tc1, tc2):
+        parts = values[:used].reshape(segments, length)
+        parts = parts - parts.mean(axis=1, keepdims=True)
+        spectra.append(np.fft.rfft(parts * window, axis=1)[:, 1:])
+    first, second = spectra
+    cross = np.abs(np.mean(first * np.conj(second), axis=0)) ** 2
+    powers = np.mean(np.abs(first) ** 2, axis=0) * np.mean(np.abs(second) ** 2, axis=0)
+    coherence = cross / np.maximum(powers, np.finfo(float).tiny)
+    best = int(np.argmax(coherence))
+    return float(coherence[best]), best, length
 
 
 def check_shared_signal(
@@ -157,35 +192,32 @@ def check_shared_signal(
     Two thermocouples in one gas carry its signal, so their coherence comes near 1 where the
     gas moves them above their noise; two independent noises stay near 0 at every frequency,
     and a fit of τ to them only finds the few samples the noise happens to correlate over.
-    ``dt`` (s) names the frequency in the message.
+    The coherence is looked at with :data:`SHARED_SEGMENTS` segments, each held to its bound
+    of equal chance (:func:`_shared_threshold`); ``dt`` (s) names the frequency in the
+    message.
 
     Raises
     ------
     NoExcitationError
-        If the coherence stays below :data:`SHARED_COHERENCE` at every frequency.
+        If the coherence stays below its bound at every frequency, at every resolution.
     """
-    length = 2 ** math.floor(math.log2(max(tc1.size // SHARED_SEGMENTS, 1)))
-    if length < SHARED_MIN_LENGTH:
-        return  # segments too short to resolve the gas's band: the estimators' checks apply
-    used = length * SHARED_SEGMENTS
-    window = np.hanning(length)
-    spectra = []
-    for values in (tc1, tc2):
-        segments = values[:used].reshape(SHARED_SEGMENTS, length)
-        segments = segments - segments.mean(axis=1, keepdims=True)
-        spectra.append(np.fft.rfft(segments * window, axis=1)[:, 1:])
-    first, second = spectra
-    cross = np.abs(np.mean(first * np.conj(second), axis=0)) ** 2
-    powers = np.mean(np.abs(first) ** 2, axis=0) * np.mean(np.abs(second) ** 2, axis=0)
-    coherence = cross / np.maximum(powers, np.finfo(float).tiny)
-    best = int(np.argmax(coherence))
-    if coherence[best] < SHARED_COHERENCE:
-        raise NoExcitationError(
-            f"{names[0]} and {names[1]} share no signal: their coherence is at most "
-            f"{coherence[best]:.2f} at any frequency (near {(best + 1) / (length * dt):.3g} Hz; "
-            "two sensors in one gas reach near 1 where it moves them): noise alone, or not "
-            "two thermocouples in the same gas"
-        )
+    finest = None
+    for segments in SHARED_SEGMENTS:
+        found = _best_coherence(tc1, tc2, segments)
+        if found is None:
+            break  # segments too short to resolve the gas's band: the estimators' checks apply
+        if found[0] >= _shared_threshold(segments):
+            return
+        finest = finest or found
+    if finest is None:
+        return
+    value, best, length = finest
+    raise NoExcitationError(
+        f"{names[0]} and {names[1]} share no signal: their coherence is at most "
+        f"{value:.2f} at any frequency (near {(best + 1) / (length * dt):.3g} Hz; "
+        "two sensors in one gas reach near 1 where it moves them): noise alone, or not "
+        "two thermocouples in the same gas"
+    )
 
 
 def sample_interval_from_time(
