@@ -53,6 +53,7 @@ little: assuming φ = 1 on data with φ = 0.16 (K = 2 %) biases τ1 by +0.2 %, �
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -106,6 +107,13 @@ _TAU_RECORD_SAMPLES = 100.0
 #: records give 0.98-0.99 (sampling spread a few %); conduction to cold supports with τ beyond
 #: the record 1.25-7.4.
 _MISFIT_RATIO = 1.1
+#: The gain deviations h the rival of a fit with τ beyond the record is searched within and
+#: started from (a junction's conduction to cold supports scales its reading by 1/(1 + κ),
+#: κ up to a few), and the margin of −2 log L within which it fits as well (the 95 % point of
+#: χ² with one degree of freedom).
+_RIVAL_GAIN_RANGE = (-0.75, 3.0)
+_RIVAL_GAIN_STARTS = (-0.4, 0.0, 0.5, 1.0, 2.0)
+_RIVAL_MARGIN = 3.84
 #: Most evaluations of the residual one search may take (least_squares' default is 300 for three
 #: parameters). A record the first-order model fits badly (a flow speed drifting through the
 #: record: τ itself drifts) has a long flat valley that the search crosses in 600-700.
@@ -207,6 +215,8 @@ class _CrossRelation:
     dt: float
     phi: float
     gain_weight: float
+    gain_range: tuple[float, float] = (-_GAIN_RANGE, _GAIN_RANGE)
+    tau_high_s: float | None = None
 
     @classmethod
     def from_signals(
@@ -318,11 +328,30 @@ class _CrossRelation:
         return float(whitened @ whitened)
 
     def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Search range of x: log τ from a fiftieth of a sample to ten record lengths, h ± 0.5."""
+        """Search range of x: log τ and h.
+
+        τ from a fiftieth of a sample to ten record lengths (or :attr:`tau_high_s`), h within
+        :attr:`gain_range` (± 0.5).
+        """
         duration = (self.rows + 1) * self.dt
         low = math.log(_TAU_LOW_SAMPLES * self.dt)
-        high = math.log(_TAU_HIGH_RECORDS * duration)
-        return np.array([low, low, -_GAIN_RANGE]), np.array([high, high, _GAIN_RANGE])
+        high = math.log(self.tau_high_s or _TAU_HIGH_RECORDS * duration)
+        h_low, h_high = self.gain_range
+        return np.array([low, low, h_low]), np.array([high, high, h_high])
+
+    def log_likelihood_ratio(self, x: NDArray[np.float64]) -> float:
+        """−2 log L at x with σ2 profiled out, up to a constant: M log(J/M) + log det Σ̃.
+
+        J alone falls as the gain grows (Σ = φR1 + g²R2 grows with it); the determinant,
+        ≈ r1^M for the tridiagonal Toeplitz Σ̃ (:meth:`whiten`), puts fits of different gains
+        on one scale. The gain's prior row is left out: this compares fits, not priors.
+        """
+        whitened = self.projected(x)[:-1]
+        diagonal, off_diagonal = self.covariance_bands(x)
+        root = math.sqrt((self.phi + (1.0 + x[2]) ** 2) * (diagonal - 2.0 * off_diagonal))
+        r1 = 0.5 * (diagonal + root)
+        rows = self.rows
+        return rows * math.log(float(whitened @ whitened) / rows) + rows * math.log(r1)
 
 
 def _grid_starts(problem: _CrossRelation) -> list[NDArray[np.float64]]:
@@ -413,6 +442,61 @@ def _search(problem: _CrossRelation, initial: NDArray[np.float64]) -> OptimizeRe
         xtol=1e-12,
         ftol=1e-12,
         max_nfev=_MAX_EVALUATIONS,
+    )
+
+
+def _gain_rival(
+    problem: _CrossRelation, slow: NDArray[np.float64], length: float
+) -> NDArray[np.float64] | None:
+    """A pair with both τ within the record and any gain that fits as well as ``slow``, or None.
+
+    Two sensors whose τ both exceed the record see its changes as integrators do, so their
+    relation is a ratio of gains: a fit with τ beyond the record is matched by sensors of
+    unequal gain with τ within it (conduction to cold supports scales each junction's
+    reading by 1/(1 + κ)), and the data cannot tell the two apart. The rival's search has
+    the gain free from :data:`_RIVAL_GAIN_RANGE` and no prior; it fits as well when its
+    −2 log L (:meth:`_CrossRelation.log_likelihood_ratio`) is within :data:`_RIVAL_MARGIN`
+    of the slow fit's.
+    """
+    rival_problem = dataclasses.replace(
+        problem, gain_weight=0.0, gain_range=_RIVAL_GAIN_RANGE, tau_high_s=length
+    )
+    low, high = rival_problem.bounds()
+    starts = [
+        np.array([x[0], x[1], h])
+        for x in _grid_starts(rival_problem)
+        for h in _RIVAL_GAIN_STARTS
+        if low[2] < h < high[2]
+    ]
+    fits = [_search(rival_problem, start) for start in starts]
+    inside = [
+        found.x
+        for found in fits
+        if found.success and np.all(np.minimum(found.x - low, high - found.x) >= 1e-6)
+    ]
+    if not inside:
+        return None
+    best = min(inside, key=rival_problem.log_likelihood_ratio)
+    slow_value = problem.log_likelihood_ratio(slow)
+    if rival_problem.log_likelihood_ratio(best) <= slow_value + _RIVAL_MARGIN:
+        return best
+    return None
+
+
+def _gain_rival_message(
+    problem: _CrossRelation, slow: NDArray[np.float64], rival: NDArray[np.float64], length: float
+) -> str:
+    """Why a fit with τ beyond the record that a gain between the sensors matches is refused."""
+    return (
+        f"ml-eiv: the best first-order fit has τ1 = {math.exp(slow[0]):.3g} s, "
+        f"τ2 = {math.exp(slow[1]):.3g} s, longer than the {length:.3g} s record, and sensors "
+        f"with τ1 = {math.exp(rival[0]):.3g} s, τ2 = {math.exp(rival[1]):.3g} s whose gains "
+        f"differ by {100.0 * float(rival[2]):+.3g} % (tc1's reading per degree of tc2's) fit "
+        "the record as well: a lag beyond the record is not told from a gain, so no gas is "
+        f"reconstructed from it. There the sensors disagree by {problem.offset(rival):+.3g} °C "
+        f"in level; IEC 60584 class 2 allows about {CLASS2_OFFSET_C:g} °C or "
+        f"{100 * CLASS2_GAIN:g} %. Such a gain is conduction to the supports or a "
+        "calibration: fit the physics with --effects auto, or correct one sensor's calibration"
     )
 
 
@@ -574,6 +658,9 @@ def ml_eiv(
         misfit = _misfit_ratio(tc2, dt, math.sqrt(noise_variance))
         if not misfit <= _MISFIT_RATIO:
             raise EstimationError(_too_slow_message(problem, fit.x, length, misfit))
+        rival = _gain_rival(problem, fit.x, length)
+        if rival is not None:
+            raise EstimationError(_gain_rival_message(problem, fit.x, rival, length))
     covariance = noise_variance * np.linalg.inv(jacobian.T @ jacobian)
     params = {
         **_interval_params(tau, covariance),
