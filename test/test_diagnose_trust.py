@@ -527,3 +527,21 @@ def test_unequal_noise_is_named_and_every_effect_is_judged_against_the_fitted_fi
     ]
     assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.05)
     assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.05)
+
+
+def test_no_verdict_rests_on_a_tau_of_more_than_half_the_record():
+    # Conduction to cold supports put a base fit's τ at the end of the fits' search (one record)
+    # and a calibration with τ as long was named: whatever the first-order τ, a τ the record
+    # cannot tell from a gain is implausible; one well inside the record is not.
+    from tcomp_core.diagnose.pipeline import _base_fit
+    from tcomp_core.diagnose.ranking import MAX_TAU_PER_RECORD, implausibility
+
+    sim = simulate_effect(None, "multisine", tau1=0.03, tau2=0.2, dt=0.002, duration=4.0, seed=3)
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="x", dt=sim.dt)
+    evaluator, _, base, _ = _base_fit(record)
+    long_tau = 1.01 * MAX_TAU_PER_RECORD * evaluator.context.duration_s
+    context = dataclasses.replace(evaluator.context, base_taus_s=(0.5 * long_tau, long_tau))
+    evaluator = dataclasses.replace(evaluator, context=context)
+    assert implausibility(base, evaluator) == ""
+    slow = dataclasses.replace(base, tau2=long_tau, params={**base.params, "tau2": long_tau})
+    assert "record" in implausibility(slow, evaluator)

@@ -108,6 +108,8 @@ TIE_TOLERANCE = 0.03
 NOISE_RATIO_FACTOR = 2.0
 #: Most effects the staircase adds.
 MAX_EFFECTS = 3
+#: Longest τ a verdict may rest on, per record length (:func:`implausibility`).
+MAX_TAU_PER_RECORD = 0.5
 #: |t| of the residual's curvature against the level above which radiation beats a tied
 #: calibration.
 CURVATURE_T = 3.0
@@ -462,8 +464,19 @@ def implausibility(fit: ModelFit, evaluator: Evaluator) -> str:
     """Why the fitted model is no physical sensor ('' if plausible): see :meth:`Model.implausible`.
 
     Judged against the first-order τ of the record (``evaluator.context.base_taus_s``), where
-    it is not below a working sample.
+    it is not below a working sample, and against the record itself: a τ of more than
+    :data:`MAX_TAU_PER_RECORD` of the record is not told from a gain (the record's changes
+    reach such a sensor as they reach an integrator, and the fits' search ends at one record),
+    so no verdict rests on it, whatever the first-order τ (conduction to cold supports put the
+    base τ at 95 times the truth, and a calibration with τ as long was named).
     """
+    longest = MAX_TAU_PER_RECORD * evaluator.context.duration_s
+    for index, tau in enumerate((fit.tau1, fit.tau2), start=1):
+        if tau > longest:
+            return (
+                f"tau{index} = {tau:.3g} s is more than {MAX_TAU_PER_RECORD:g} of the "
+                f"{evaluator.context.duration_s:.3g} s record"
+            )
     return Model(fit.effects, fit.params).implausible(
         evaluator.context.base_taus_s, evaluator.data.dt
     )
