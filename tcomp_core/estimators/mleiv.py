@@ -339,8 +339,8 @@ class _CrossRelation:
         h_low, h_high = self.gain_range
         return np.array([low, low, h_low]), np.array([high, high, h_high])
 
-    def log_likelihood_ratio(self, x: NDArray[np.float64]) -> float:
-        """−2 log L at x with σ2 profiled out, up to a constant: M log(J/M) + log det Σ̃.
+    def deviance(self, x: NDArray[np.float64]) -> float:
+        """The deviance −2 log L at x, σ2 profiled out, up to a constant: M log(J/M) + log det Σ̃.
 
         J alone falls as the gain grows (Σ = φR1 + g²R2 grows with it); the determinant,
         ≈ r1^M for the tridiagonal Toeplitz Σ̃ (:meth:`whiten`), puts fits of different gains
@@ -455,7 +455,7 @@ def _gain_rival(
     unequal gain with τ within it (conduction to cold supports scales each junction's
     reading by 1/(1 + κ)), and the data cannot tell the two apart. The rival's search has
     the gain free from :data:`_RIVAL_GAIN_RANGE` and no prior; it fits as well when its
-    −2 log L (:meth:`_CrossRelation.log_likelihood_ratio`) is within :data:`_RIVAL_MARGIN`
+    −2 log L (:meth:`_CrossRelation.deviance`) is within :data:`_RIVAL_MARGIN`
     of the slow fit's.
     """
     rival_problem = dataclasses.replace(
@@ -476,9 +476,9 @@ def _gain_rival(
     ]
     if not inside:
         return None
-    best = min(inside, key=rival_problem.log_likelihood_ratio)
-    slow_value = problem.log_likelihood_ratio(slow)
-    if rival_problem.log_likelihood_ratio(best) <= slow_value + _RIVAL_MARGIN:
+    best = min(inside, key=rival_problem.deviance)
+    slow_value = problem.deviance(slow)
+    if rival_problem.deviance(best) <= slow_value + _RIVAL_MARGIN:
         return best
     return None
 
