@@ -586,6 +586,7 @@ def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
         info.value
     )
     assert "--effects calibration" in str(info.value)
+    assert "conduction to supports colder than the gas" in str(info.value)
     # A record of two sensors in one gas is not refused by the same check.
     sim = simulate_effect(None, "multisine", duration=4.0, noise_percent=1.0, seed=3)
     good = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="good", dt=sim.dt)
