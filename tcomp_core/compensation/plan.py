@@ -422,8 +422,8 @@ def _level_disagreement(tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> s
     Two first-order lags of one gas read the same mean, so a difference beyond what two
     class-2 sensors may show (by :data:`~tcomp_core.tolerance.CLASS2_MARGIN`) is a calibration
     the refused fit had no way to explain, or conduction to supports colder than the gas,
-    which pulls each wire's reading toward them by its own share (on campaign draws of it the
-    readings differed by 68-131 °C at 150-180 °C and the message named a calibration only).
+    which pulls each wire's reading toward them by its own share (on six campaign draws of it
+    the readings differed by 48-186 °C at 74-248 °C and the message named a calibration only).
     """
     difference = float(np.mean(tc1) - np.mean(tc2))
     level = 0.5 * float(np.mean(tc1) + np.mean(tc2))
