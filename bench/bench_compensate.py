@@ -126,7 +126,7 @@ def compare(
     plain_taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
     lines = () if plain is None else plain.lines
     failure = default_first_order_failure(record, plain)
-    diagnosis = diagnose(record, published_taus=plain_taus)
+    diagnosis = diagnose(record, published_taus=plain_taus, published_lines=lines)
     output = output_model_from_diagnosis(
         diagnosis,
         origin_s=float(record.time[0]),
@@ -144,6 +144,7 @@ def compare(
         "band_c": None if found is None else found.band_c,
         "change_c": None if found is None else found.change_c,
         "published_change_c": None if found is None else found.published_change_c,
+        "evidence_c": None if found is None else found.evidence_c,
         "first_order_fails": bool(failure),
         "tau": [base.tau1, base.tau2, diagnosis.final.tau1, diagnosis.final.tau2],
     }

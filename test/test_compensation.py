@@ -447,6 +447,30 @@ def test_the_change_against_the_published_first_order_is_measured_like_the_effec
     assert moved.final.identification.published_change_c > 1.1 * found.change_c
 
 
+def test_the_change_against_the_published_first_order_takes_its_lines_off_as_it_does():
+    """The default path takes the lines it finds off the carrying channel before it publishes;
+    against its first order measured with the line left on, an interference fit's change
+    would be the line amplified by the inverse lag, not what applying the model changes."""
+    from tcomp_core.compensation import default_estimate
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.io import Record
+
+    sim = simulate_effect(
+        "interference", "multisine", duration=10.0, noise_percent=1.0, seed=5, params=None
+    )
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="t", dt=sim.dt)
+    plain = default_estimate(record)
+    assert plain.lines and plain.lines[0].channel == 2
+    taus = (plain.tau1, plain.tau2)
+    raw = fit_effects(record, ("interference",), published_taus=taus).final.identification
+    free = fit_effects(
+        record, ("interference",), published_taus=taus, published_lines=plain.lines
+    ).final.identification
+    assert raw.published_change_c > 0.5 * raw.change_c  # the line, amplified
+    assert free.published_change_c < 0.2 * free.change_c  # the τ's move alone
+    assert free.change_c == pytest.approx(raw.change_c)
+
+
 def test_a_determined_parameter_whose_interval_spans_its_physical_range_is_not_pinned():
     """Radiation fitted on a record without it: rho1 is determined (a finite covariance, off
     its bound) but its 95 % interval reaches 0 and spans most of its physical range, so the

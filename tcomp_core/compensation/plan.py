@@ -555,16 +555,17 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
 
     plain = default_estimate(record)
     taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
+    lines = () if plain is None else plain.lines
     diagnosis = (
-        diagnose(record, published_taus=taus)
+        diagnose(record, published_taus=taus, published_lines=lines)
         if effects is None
-        else fit_effects(record, effects, published_taus=taus)
+        else fit_effects(record, effects, published_taus=taus, published_lines=lines)
     )
     return output_model_from_diagnosis(
         diagnosis,
         origin_s=float(record.time[0]),
         first_order_taus=taus,
-        first_order_lines=() if plain is None else plain.lines,
+        first_order_lines=lines,
         first_order_failure=default_first_order_failure(record, plain),
     )
 

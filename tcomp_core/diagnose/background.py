@@ -104,11 +104,12 @@ def run_job(
         # The default path's τ: what the output model falls back to, and measures against.
         plain = default_estimate(record) if output else None
         published = None if plain is None else (float(plain.tau1), float(plain.tau2))
+        lines = () if plain is None else plain.lines
         if effects is None:
-            fitted = diagnose(record, published_taus=published)
+            fitted = diagnose(record, published_taus=published, published_lines=lines)
             suspect = next((item for item in fitted.suspects if item.significant), None)
         else:
-            fitted = fit_effects(record, effects, published_taus=published)
+            fitted = fit_effects(record, effects, published_taus=published, published_lines=lines)
             suspect = None
             if find_suspect:
                 suspects = diagnose(record, max_effects=1).suspects

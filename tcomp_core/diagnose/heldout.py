@@ -30,6 +30,7 @@ from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
+from ..lines import ForeignLine
 from ..tolerance import class2_level_tolerance_c
 from .identification import held_edges, identify
 from .prepare import PreparedData
@@ -101,6 +102,8 @@ class Evaluator:
     published_taus_s : (float, float) or None
         τ1, τ2 the default first-order path publishes for the record, s: the identification
         also measures the final model's change against first order there.
+    published_lines : tuple of ForeignLine
+        The lines that path takes off the channel carrying one, with those τ.
     """
 
     data: PreparedData
@@ -110,6 +113,7 @@ class Evaluator:
     fit_cutoff_hz: float | None = None
     start_taus_s: tuple[float, float] | None = None
     published_taus_s: tuple[float, float] | None = None
+    published_lines: tuple[ForeignLine, ...] = ()
     _sos: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -271,6 +275,7 @@ class Evaluator:
                 lambda rows: model.fit(*self._fit_inputs, rows, held),
                 level_free=level_free,
                 published_taus=self.published_taus_s,
+                published_lines=self.published_lines,
             )
         return replace(
             fit,

@@ -26,6 +26,7 @@ from ..errors import EstimationError, TcompError
 from ..estimators.beta import estimate_beta_from_scatter
 from ..estimators.scatter import beta_scatter
 from ..io import Record
+from ..lines import ForeignLine
 from .heldout import Evaluator, heldout_error_percent
 from .prepare import PreparedData, block_length_s, prepare
 from .ranking import (
@@ -371,7 +372,9 @@ def _diagnosis(
 
 
 def _base_fit(
-    record: Record, published_taus: tuple[float, float] | None = None
+    record: Record,
+    published_taus: tuple[float, float] | None = None,
+    published_lines: Sequence[ForeignLine] = (),
 ) -> tuple[Evaluator, Model, ModelFit, FailureAnalysis]:
     """Prepare the record, fit and score the base model, and say where it fails.
 
@@ -389,7 +392,11 @@ def _base_fit(
     """
     data = prepare(record)
     taus = _initial_taus(data)
-    evaluator = replace(_evaluator(data, taus), published_taus_s=published_taus)
+    evaluator = replace(
+        _evaluator(data, taus),
+        published_taus_s=published_taus,
+        published_lines=tuple(published_lines),
+    )
     model, base = _fit_base(evaluator, taus)
     fitted = (float(model.tau1), float(model.tau2))
     if all(math.isfinite(tau) and tau > 0.0 for tau in fitted):
@@ -405,6 +412,7 @@ def diagnose(
     candidates: Sequence[str] = EFFECT_NAMES,
     max_effects: int = MAX_EFFECTS,
     published_taus: tuple[float, float] | None = None,
+    published_lines: Sequence[ForeignLine] = (),
 ) -> Diagnosis:
     """Compare the first-order model with a record, find where it fails and what is missing.
 
@@ -421,6 +429,10 @@ def diagnose(
         τ1, τ2 the default first-order path publishes for the record, s: the final model's
         identification measures its change to the gas against first order there too
         (:attr:`~.identification.Identification.published_change_c`).
+    published_lines : sequence of ForeignLine
+        The lines that path takes off the channel carrying one
+        (:attr:`tcomp_core.estimators.Estimate.lines`), so that its first order is measured
+        as it publishes it.
 
     Returns
     -------
@@ -434,7 +446,7 @@ def diagnose(
         If not even the base model can be fitted.
     """
     candidates = check_effect_names(candidates)
-    evaluator, model, base, failure = _base_fit(record, published_taus)
+    evaluator, model, base, failure = _base_fit(record, published_taus, published_lines)
     staircase = _staircase(evaluator, model, base, candidates, max_effects)
     steps = staircase.steps
     steps[-1] = evaluator.refit_whole(steps[-1])
@@ -459,12 +471,14 @@ def fit_effects(
     effects: Sequence[str],
     *,
     published_taus: tuple[float, float] | None = None,
+    published_lines: Sequence[ForeignLine] = (),
 ) -> Diagnosis:
     """Fit the base model plus a chosen set of effects, added in the order given.
 
     Every step is scored like :func:`diagnose` scores it; ``steps`` holds the base model and
     one fit per effect added, ``suspects`` the same fits as suspects, and ``verdict`` the
-    last effect (``"none"`` for an empty set). ``published_taus`` as for :func:`diagnose`.
+    last effect (``"none"`` for an empty set). ``published_taus`` and ``published_lines`` as
+    for :func:`diagnose`.
 
     Raises
     ------
@@ -472,7 +486,7 @@ def fit_effects(
         If a fit fails.
     """
     effects = check_effect_names(effects)
-    evaluator, model, base, failure = _base_fit(record, published_taus)
+    evaluator, model, base, failure = _base_fit(record, published_taus, published_lines)
     steps, suspects = [base], []
     for name in effects:
         try:
