@@ -394,6 +394,46 @@ def test_where_the_default_first_order_fails_the_band_is_weighed_against_its_gas
 
 
 @pytest.mark.parametrize(
+    ("line_channel", "line_hz", "model_hz", "applied"),
+    [
+        (1, 50.02, 50.0, False),  # the default path notches this line on tc1 itself
+        (1, 59.0, 60.0, False),  # within the notch's width (f / Q = 2 Hz at 60 Hz)
+        (2, 50.0, 50.0, True),  # it found a line on the other channel only
+        (1, 150.0, 50.0, True),  # a line elsewhere: the model's own is undone
+    ],
+)
+def test_an_interference_the_default_path_takes_off_itself_is_left_to_it(
+    line_channel, line_hz, model_hz, applied
+):
+    """A mains line alone, which the default path notches on the same channel: the model would
+    change only τ (a missed delay put it 10 % short and the gas 9.7 % off where the default
+    path's was 2.9 %), so the gas is the default path's, on its τ."""
+    from tcomp_core.compensation import output_model_from_diagnosis
+    from tcomp_core.diagnose.identification import Identification
+    from tcomp_core.lines import ForeignLine
+
+    frequency = model_hz
+    found = Identification(checks=(), band_c=0.2, change_c=30.0, evidence_c=50.0)
+    diagnosis = _diagnosis_with(("interference",), {}, identification=found, taus=(0.03, 0.12))
+    diagnosis.final.params |= {"interference_hz": frequency, "interference_channel": 1.0}
+    lines = (ForeignLine(frequency_hz=line_hz, channel=line_channel, amplitude_c=2.0),)
+    model = output_model_from_diagnosis(
+        diagnosis, first_order_taus=(0.031, 0.125), first_order_lines=lines
+    )
+    assert (model.applied() == ("interference",)) is applied
+    assert (model.tau1, model.tau2) == ((0.03, 0.12) if applied else (0.031, 0.125))
+    if not applied:
+        assert "takes the" in model.pieces[0].reason and "off tc1 itself" in model.pieces[0].reason
+    # Beside another applied effect the model's own line removal stays (its chain is one).
+    both = _diagnosis_with(("delay", "interference"), {}, identification=found, taus=(0.03, 0.12))
+    both.final.params |= {"interference_hz": frequency, "interference_channel": 1.0}
+    model = output_model_from_diagnosis(
+        both, first_order_taus=(0.031, 0.125), first_order_lines=lines
+    )
+    assert model.applied() == ("delay", "interference")
+
+
+@pytest.mark.parametrize(
     ("effect", "params", "fails"),
     [
         ("none", None, False),
