@@ -60,11 +60,7 @@ from tcomp_core.diagnose import diagnose, pipeline
 from tcomp_core.diagnose.prepare import prepare
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.io import Record
-from tcomp_core.simulate_effects import (
-    KELVIN,
-    RADIATION_MEAN_C,
-    simulate_effect,
-)
+from tcomp_core.simulate_effects import simulate_effect
 
 TRUTHS = (None, *EFFECT_NAMES)
 TAU_PAIRS = ((0.0238, 0.1168), (0.015, 0.06))
@@ -88,8 +84,12 @@ def random_params(effect, rng, tau1, tau2) -> dict[str, float]:
     if effect == "conduction":  # mL of the slower wire's legs 1.3-2.3 (kappa2 0.2-0.9)
         return {"tau_leg": max(tau1, tau2) * draw(1.3, 2.3) ** 2, "tau_p": draw(0.5, 2.5)}
     if effect == "radiation":
-        r1 = draw(0.05, 0.15) / (4.0 * (RADIATION_MEAN_C + KELVIN) ** 3)
-        return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": draw(150, 450)}
+        rho1 = draw(0.05, 0.15)
+        return {
+            "rho1": rho1,
+            "rho2": rho1 * (tau2 / tau1) ** (1.0 / 3.0),
+            "wall_c": draw(150, 450),
+        }
     if effect == "velocity":
         return {"m": draw(0.5, 0.8), "depth": draw(0.25, 0.5), "period_s": draw(3.0, 10.0)}
     if effect == "delay":

@@ -23,14 +23,22 @@ effect         sensor i (τi dTi/dt = Tg − Ti unless stated)
 =============  ===============================================================================
 conduction     Gi(s) = (1 − Si)/(1 + τi s) + Si/(1 + τp s), Si = sech(mLi √(1 + τi s)),
                mLi = √(tau_leg/τi): a junction between two fin legs on supports lagging τp
-radiation      τi dTi/dt = Tg − Ti − ri (Ti⁴ − Tw⁴), temperatures in kelvin in the law
+radiation      τi dTi/dt = Tg − Ti − ri (Ti⁴ − Tw⁴), temperatures in kelvin in the law,
+               ri = rhoi / (4 T̄³) with the gas mean T̄ in K (rhoi as the fit's ρi)
 velocity       τi(t) = τi0 (v(t)/v0)^(−m),  v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)
-property       τi(t) = τi0 (Tf/T̄)^exponent, film Tf = (Ti + Tg)/2 and the gas mean T̄ in K
+property       τi(t) = τi0 (Tf/T̄)^property_exponent, film Tf = (Ti + Tg)/2, gas mean T̄ in K
 delay          junction 2 sees the gas δ = delay_s later than junction 1
 calibration    tc2 reads gain · T2 + offset_c
-interference   tc2 reads T2 + line_c (sin 2π f t + 0.3 sin 6π f t + 0.1 sin 10π f t), f = line_hz
+interference   tc2 reads T2 + interference_c (sin 2π f t + 0.3 sin 6π f t + 0.1 sin 10π f t),
+               f = interference_hz
 noise_ratio    σ2 = sigma_ratio · σ1, so φ = σ1²/σ2² = 1/sigma_ratio²
 =============  ===============================================================================
+
+Parameters that the fitted effects of :mod:`tcomp_core.effects` also have carry their names
+(``rho1``, ``rho2``, ``wall_c``, ``tau_leg``, ``tau_p``, ``delay_s``, ``gain``, ``offset_c``,
+``interference_hz``, ``property_exponent``), so a record's true parameters compare with a
+fit's by name; those of other forms (a sine of the speed, a line of fixed harmonics) keep
+their own.
 """
 
 from __future__ import annotations
@@ -60,7 +68,7 @@ KELVIN = 273.15
 #: matters in hot gas, e.g. an exhaust or a combustor.
 RADIATION_MEAN_C = 700.0
 RADIATION_AMPLITUDE_C = 250.0
-#: Radiative to convective conductance 4 r1 T̄³ of sensor 1 at ``RADIATION_MEAN_C``.
+#: Radiative to convective conductance 4 r1 T̄³ of sensor 1 (``rho1``) by default.
 RADIATION_RHO1 = 0.08
 #: mL of the slower wire's legs for ``conduction``.
 CONDUCTION_FIN_ML = 1.7
@@ -74,8 +82,8 @@ VELOCITY_PHASE = 0.3
 _RANGES: dict[str, tuple[float, float, bool]] = {
     "tau_leg": (0.0, np.inf, False),
     "tau_p": (0.0, np.inf, False),
-    "r1": (0.0, np.inf, True),
-    "r2": (0.0, np.inf, True),
+    "rho1": (0.0, np.inf, True),
+    "rho2": (0.0, np.inf, True),
     "wall_c": (-KELVIN, np.inf, False),
     "m": (0.0, np.inf, True),
     "depth": (0.0, 1.0, True),
@@ -84,9 +92,9 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "gain": (0.0, np.inf, False),
     "offset_c": (-np.inf, np.inf, False),
     "sigma_ratio": (0.0, np.inf, False),
-    "exponent": (-np.inf, np.inf, False),
-    "line_hz": (0.0, np.inf, False),
-    "line_c": (0.0, np.inf, True),
+    "property_exponent": (-np.inf, np.inf, False),
+    "interference_hz": (0.0, np.inf, False),
+    "interference_c": (0.0, np.inf, True),
 }
 #: Relative amplitudes of the odd harmonics 1, 3, 5 of ``interference`` (a rectified pick-up).
 INTERFERENCE_HARMONICS = ((1, 1.0), (3, 0.3), (5, 0.1))
@@ -164,19 +172,21 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
     effect : str or None
         One of :data:`EFFECT_NAMES`; None (or ``"none"``) has no parameters.
     tau1, tau2 : float
-        Time constants of the two sensors in seconds; ``radiation`` scales r2 with them.
+        Time constants of the two sensors in seconds; ``radiation`` scales rho2 with them.
 
     Returns
     -------
     dict of str to float
         ``conduction``: tau_leg (s; the legs' diffusion time L²/α, so mLi = √(tau_leg/τi)),
         tau_p (s).
-        ``radiation``: r1, r2 (K⁻³), wall_c (degrees C); 4 r1 T̄³ = 0.08 at T̄ = 700 °C and
-        r2 = r1 (τ2/τ1)^(1/3), as a thicker wire radiates relatively more.
+        ``radiation``: rho1, rho2 (dimensionless: 4 ri T̄³, the radiative to convective
+        conductance at the gas mean T̄), wall_c (degrees C); rho1 = 0.08 and
+        rho2 = rho1 (τ2/τ1)^(1/3), as a thicker wire radiates relatively more (Nu ∝ Re^½).
         ``velocity``: m (dimensionless), depth (dimensionless), period_s (s).
-        ``property``: exponent p of τ ∝ T^p (dimensionless, T in kelvin).
+        ``property``: property_exponent p of τ ∝ T^p (dimensionless, T in kelvin).
         ``delay``: delay_s (s). ``calibration``: gain (dimensionless), offset_c (degrees C).
-        ``interference``: line_hz (Hz) and line_c, the fundamental's amplitude (degrees C).
+        ``interference``: interference_hz (Hz) and interference_c, the fundamental's
+        amplitude (degrees C).
         ``noise_ratio``: sigma_ratio = σ2/σ1 (dimensionless).
     """
     effect = _check_effect(effect)
@@ -187,18 +197,18 @@ def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[
         # mL2 = 1.7 on the slower wire (its supports pull it by sech(1.7) = 35 % at DC).
         return {"tau_leg": CONDUCTION_FIN_ML**2 * max(tau1, tau2), "tau_p": 1.0}
     if effect == "radiation":
-        r1 = RADIATION_RHO1 / (4.0 * (RADIATION_MEAN_C + KELVIN) ** 3)
-        return {"r1": r1, "r2": r1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": 300.0}
+        rho1 = RADIATION_RHO1
+        return {"rho1": rho1, "rho2": rho1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": 300.0}
     if effect == "velocity":
         return {"m": 0.6, "depth": 0.4, "period_s": 6.0}
     if effect == "property":
-        return {"exponent": PROPERTY_EXPONENT}
+        return {"property_exponent": PROPERTY_EXPONENT}
     if effect == "delay":
         return {"delay_s": 0.008}
     if effect == "calibration":
         return {"gain": 1.03, "offset_c": -4.0}
     if effect == "interference":
-        return {"line_hz": 50.0, "line_c": 1.0}
+        return {"interference_hz": 50.0, "interference_c": 1.0}
     return {"sigma_ratio": 2.5}
 
 
@@ -499,14 +509,18 @@ def _simulate_clean(
         step = dt / stride
         if effect == "radiation":
             wall_k = params["wall_c"] + KELVIN
+            cube = 4.0 * (float(np.mean(gas)) + KELVIN) ** 3  # rho_i = 4 r_i T̄³
             clean = [
-                _radiation_response(gas + KELVIN, tau, params[r], wall_k, step, stride) - KELVIN
-                for tau, r in zip(taus, ("r1", "r2"), strict=True)
+                _radiation_response(gas + KELVIN, tau, params[rho] / cube, wall_k, step, stride)
+                - KELVIN
+                for tau, rho in zip(taus, ("rho1", "rho2"), strict=True)
             ]
         elif effect == "property":
             ref_k = float(np.mean(gas)) + KELVIN
             clean = [
-                _level_response(gas + KELVIN, tau, params["exponent"], ref_k, step, stride)
+                _level_response(
+                    gas + KELVIN, tau, params["property_exponent"], ref_k, step, stride
+                )
                 - KELVIN
                 for tau in taus
             ]
@@ -535,8 +549,8 @@ def _simulate_clean(
     if effect == "interference":
         time = np.arange(n) * dt
         for harmonic, share in INTERFERENCE_HARMONICS:
-            phase = 2.0 * np.pi * harmonic * params["line_hz"] * time
-            clean2 = clean2 + params["line_c"] * share * np.sin(phase)
+            phase = 2.0 * np.pi * harmonic * params["interference_hz"] * time
+            clean2 = clean2 + params["interference_c"] * share * np.sin(phase)
     return gas[::oversample], clean1, clean2, _interval_means(gas, oversample)
 
 

@@ -191,12 +191,8 @@ def test_compensated_gas_beats_first_order_with_the_true_parameters(effect, para
 def test_radiation_is_corrected_in_level_not_only_in_dynamics():
     sim = simulate_effect("radiation", "multisine", duration=10.0, noise_percent=1.0, seed=2)
     level = float(np.mean(sim.gas))
-    mean_k = level + KELVIN
-    params = {
-        "rho1": 4.0 * sim.params["r1"] * mean_k**3,
-        "rho2": 4.0 * sim.params["r2"] * mean_k**3,
-        "wall_c": sim.params["wall_c"],
-    }
+    # The simulator's rho_i are the fit's: the radiative to convective conductance at the mean.
+    params = {name: sim.params[name] for name in ("rho1", "rho2", "wall_c")}
     model = model_with(("radiation",), params, n=sim.tc1.size)
     model = replace(
         model,

@@ -212,9 +212,9 @@ def test_interference_on_the_effect_simulator_recovers_the_line():
     found = diagnose(_record(sim))
     p = found.final.params
     assert found.verdict == "interference"
-    assert p["interference_hz"] == pytest.approx(sim.params["line_hz"], abs=0.01)
+    assert p["interference_hz"] == pytest.approx(sim.params["interference_hz"], abs=0.01)
     amplitude = np.hypot(p["interference_a1"], p["interference_b1"])
-    assert amplitude == pytest.approx(sim.params["line_c"], rel=0.05)
+    assert amplitude == pytest.approx(sim.params["interference_c"], rel=0.05)
     assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.02)
 
 
@@ -362,7 +362,7 @@ def test_a_strong_property_effect_is_found_with_its_exponent():
     assert found.verdict in ("property", "none")
     assert found.final.effects == ("property",)
     exponent = found.final.params["property_exponent"]
-    assert sim.params["exponent"] - 0.1 <= exponent < -0.3
+    assert sim.params["property_exponent"] - 0.1 <= exponent < -0.3
     assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.02)
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.02)
     assert found.base.error_pct >= 2.0 * found.final.error_pct

@@ -98,20 +98,25 @@ def test_radiation_steady_state_solves_the_balance_and_reads_low():
     gas_c = 800.0
     record = clean("radiation", duration=1.0, signal_params={"mean": gas_c, "amplitude": 0.0})
     wall_k = record.params["wall_c"] + KELVIN
-    for r, reading in ((record.params["r1"], record.clean1), (record.params["r2"], record.clean2)):
+    cube = 4.0 * (gas_c + KELVIN) ** 3  # rho_i = 4 r_i T̄³ at the gas mean
+    for rho, reading in (
+        (record.params["rho1"], record.clean1),
+        (record.params["rho2"], record.clean2),
+    ):
+        r = rho / cube
         temp = reading + KELVIN
         balance = gas_c + KELVIN - temp - r * (temp**4 - wall_k**4)
         assert np.max(np.abs(balance)) < 1e-8
         assert np.ptp(reading) < 1e-8
         # Hotter than the wall, the junction loses heat by radiation: tens of kelvin here.
         assert np.all(gas_c - reading > 10.0)
-    assert record.clean2[0] < record.clean1[0]  # r2 > r1: the thicker wire reads lower
+    assert record.clean2[0] < record.clean1[0]  # rho2 > rho1: the thicker wire reads lower
 
 
 def test_radiation_defaults_use_hot_gas_and_the_stated_conductance():
     params = default_effect_params("radiation", 0.0238, 0.1168)
-    assert 4 * params["r1"] * (700.0 + KELVIN) ** 3 == pytest.approx(0.08)
-    assert params["r2"] / params["r1"] == pytest.approx((0.1168 / 0.0238) ** (1 / 3))
+    assert params["rho1"] == pytest.approx(0.08)
+    assert params["rho2"] / params["rho1"] == pytest.approx((0.1168 / 0.0238) ** (1 / 3))
     record = clean("radiation", duration=2.0)
     assert np.mean(record.gas) == pytest.approx(700.0, abs=5.0)
     assert np.ptp(record.gas) == pytest.approx(500.0, rel=0.01)
@@ -121,7 +126,7 @@ def test_radiation_defaults_use_hot_gas_and_the_stated_conductance():
 @pytest.mark.parametrize("kind", ["sinusoid", "multisine"])
 def test_radiation_without_radiation_is_the_plain_sensor(kind):
     plain = clean(None, kind, duration=3.0, signal_params=HOT)
-    cold = clean("radiation", kind, duration=3.0, params={"r1": 0.0, "r2": 0.0})
+    cold = clean("radiation", kind, duration=3.0, params={"rho1": 0.0, "rho2": 0.0})
     for mine, theirs in ((cold.clean1, plain.clean1), (cold.clean2, plain.clean2)):
         assert np.max(np.abs(mine - theirs)) < 1e-4 * np.std(theirs)
 
