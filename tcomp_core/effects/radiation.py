@@ -7,21 +7,10 @@ convective conductance ρ = 4 r T̄³ at the record's mean temperature T̄, one 
 temperature Tw is fitted too (it is identified only when ρ1 ≠ ρ2).
 
 At moderate noise the two sensors' relation leaves a valley: τ, ρ1, ρ2 and Tw trade against
-each other with almost no change of the criterion. Physics picks the member: r = εσ/h, and
-for a wire in cross flow h = Nu k/d with Nu ∝ Re^n, so h ∝ d^(n−1) and τ = ρc d/(4h) ∝
-d^(2−n): for two wires of one emissivity ρ2/ρ1 = h1/h2 = (τ2/τ1)^e with e = (1 − n)/(2 − n).
-Fine wires run at Re ≈ 0.5–20, where every cross-flow law has a constant term or a small
-exponent (Collis & Williams 1959: Nu = 0.24 + 0.56 Re^0.45; Kramers 1946: 0.42 Pr^0.2 +
-0.57 Pr^0.33 Re^0.5; Hilpert: Re^0.33 to Re = 4, Re^0.385 to 40), so its local exponent n
-is 0.28–0.45, not the ½ of a thin boundary layer: e = (1 − n)/(2 − n) is 0.36–0.42, and
-:data:`RATIO_EXPONENT` = 0.39 (e = ⅓ at n = ½ put the ratio 5–15 % low on the detailed
-simulator's wires, and the level correction, about the sensors' level difference over
-ρ2/ρ1 − 1, up to a quarter high). A penalty holds the fit to that ratio as a Gaussian prior
-of relative width :data:`PRIOR_RELATIVE_WIDTH` (that exponent's spread over a τ ratio of
-3–6, and a few % of emissivity between two wires of one alloy): the data move the ratio only
-where they show it, which on a hot step record they did not (a penalty of one unit of the
-criterion per 0.03 of ρ let ρ2/ρ1 drift to 3.5 where it was 1.8, and the wall and the level
-valley decided the gas: band ±24 °C against a change of 10 °C).
+each other with almost no change of the criterion. Physics picks the member: r = εσ/h with
+h ∝ d^-½ (Nu ∝ Re^½) and τ ∝ d^1.5, so r ∝ d^½ ∝ τ^⅓ for wires of one emissivity, and
+ρ2/ρ1 = (τ2/τ1)^⅓. A penalty holds the fit to that ratio where the data are silent; it costs
+about one unit of the criterion for 0.03 of ρ, which informative data outweigh.
 """
 
 from __future__ import annotations
@@ -40,15 +29,8 @@ __all__ = ["MIN_RHO", "Radiation", "air_conductivity", "max_radiation_ratio"]
 #: radiation (a loss below is too small to matter).
 MIN_RHO = 0.01
 
-#: Exponent e of the prior ρ2/ρ1 = (τ2/τ1)^e (module notes: (1 − n)/(2 − n) for Nu ∝ Re^n,
-#: n = 0.28–0.45 on fine wires).
-RATIO_EXPONENT = 0.39
-#: Relative standard deviation of that prior on ρ2/ρ1: the exponent's ±0.03 over a τ ratio
-#: of 3–6 (3–5 %) with a few % of emissivity between the wires.
-PRIOR_RELATIVE_WIDTH = 0.07
-#: Absolute floor of the prior's standard deviation, in ρ: where both ratios are near 0 the
-#: prior says nothing about their ratio.
-PRIOR_FLOOR = 0.002
+#: Weight of the ρ2/ρ1 = (τ2/τ1)^⅓ prior, in units of the criterion per unit ρ.
+PRIOR_WEIGHT = 30.0
 #: Stefan–Boltzmann constant, W m⁻² K⁻⁴.
 STEFAN_BOLTZMANN = 5.670374419e-8
 #: Least volumetric heat capacity ρc of thermocouple wire, J m⁻³ K⁻¹: platinum (types R, S,
@@ -161,12 +143,11 @@ class Radiation(Effect):
         ]
 
     def identifiability(self, params: Mapping[str, float]) -> str:
-        ratio = (params["tau2"] / params["tau1"]) ** RATIO_EXPONENT
+        ratio = (params["tau2"] / params["tau1"]) ** (1.0 / 3.0)
         return (
             "radiation: tau, rho1, rho2 and the wall trade along a shallow valley; the prior "
-            f"rho2/rho1 = (tau2/tau1)^{RATIO_EXPONENT:g} = {ratio:.3g} (one emissivity, fine "
-            f"wires in cross flow, Nu ~ Re^0.28..0.45) holds the ratio where the data are silent "
-            f"(within {100 * PRIOR_RELATIVE_WIDTH:g} %, 1 sigma); the fit gives "
+            f"rho2/rho1 = (tau2/tau1)^(1/3) = {ratio:.3g} (one emissivity, Nu ~ Re^1/2) picks "
+            f"the member where the data are silent; the fit gives "
             f"{params['rho2'] / max(params['rho1'], 1e-12):.3g}"
         )
 
@@ -178,7 +159,5 @@ class Radiation(Effect):
         return r, params["wall_c"] + KELVIN
 
     def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
-        ratio = (params["tau2"] / params["tau1"]) ** RATIO_EXPONENT
-        expected, found = ratio * params["rho1"], params["rho2"]
-        width = PRIOR_RELATIVE_WIDTH * 0.5 * (expected + found) + PRIOR_FLOOR
-        return np.array([(found - expected) / width])
+        ratio = (params["tau2"] / params["tau1"]) ** (1.0 / 3.0)
+        return np.array([PRIOR_WEIGHT * (params["rho2"] - ratio * params["rho1"])])
