@@ -408,10 +408,9 @@ def test_an_interference_the_default_path_takes_off_itself_is_left_to_it(
     from tcomp_core.diagnose.identification import Identification
     from tcomp_core.lines import ForeignLine
 
-    frequency = model_hz
     found = Identification(checks=(), band_c=0.2, change_c=30.0, evidence_c=50.0)
     diagnosis = _diagnosis_with(("interference",), {}, identification=found, taus=(0.03, 0.12))
-    diagnosis.final.params |= {"interference_hz": frequency, "interference_channel": 1.0}
+    diagnosis.final.params |= {"interference_hz": model_hz, "interference_channel": 1.0}
     lines = (ForeignLine(frequency_hz=line_hz, channel=line_channel, amplitude_c=2.0),)
     model = output_model_from_diagnosis(
         diagnosis, first_order_taus=(0.031, 0.125), first_order_lines=lines
@@ -422,7 +421,7 @@ def test_an_interference_the_default_path_takes_off_itself_is_left_to_it(
         assert "takes the" in model.pieces[0].reason and "off tc1 itself" in model.pieces[0].reason
     # Beside another applied effect the model's own line removal stays (its chain is one).
     both = _diagnosis_with(("delay", "interference"), {}, identification=found, taus=(0.03, 0.12))
-    both.final.params |= {"interference_hz": frequency, "interference_channel": 1.0}
+    both.final.params |= {"interference_hz": model_hz, "interference_channel": 1.0}
     model = output_model_from_diagnosis(
         both, first_order_taus=(0.031, 0.125), first_order_lines=lines
     )
@@ -491,9 +490,7 @@ def test_the_change_against_the_published_first_order_takes_its_lines_off_as_it_
     from tcomp_core.diagnose import fit_effects
     from tcomp_core.io import Record
 
-    sim = simulate_effect(
-        "interference", "multisine", duration=10.0, noise_percent=1.0, seed=5, params=None
-    )
+    sim = simulate_effect("interference", "multisine", duration=10.0, noise_percent=1.0, seed=5)
     record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="t", dt=sim.dt)
     plain = default_estimate(record)
     assert plain.lines and plain.lines[0].channel == 2
