@@ -12,9 +12,10 @@ band is not the model's), over the record less 5 % at each end, and the mean off
 in °C. The truth is the gas averaged over each sample interval where the simulator gives it
 (the effect simulator's exhaust pulses jump within an interval: their point samples sit
 4.7 °C above the interval means, which is what element k of a reconstruction estimates).
-Records: the effect simulator (:mod:`tcomp_core.simulate_effects`, every effect and none,
-multisine and exhaust, K = 1 %) and the detailed simulator (``test/detailed_physics.py``, one
-record per condition and gas signal, ``bench_diagnose``'s grid).
+Records: the effect simulator (:mod:`tcomp_core.simulate_effects`, every effect in each of its
+forms and none, multisine and exhaust, K = 1 %) and the detailed simulator
+(``test/detailed_physics.py``, one record per condition and gas signal, ``bench_diagnose``'s
+grid).
 
 ``--campaign N`` runs the seeded random campaign of issue 24 instead
 (``bench/campaign_draws.py``: the detailed simulator with 0–2 effects in two forms each,
@@ -66,7 +67,7 @@ from tcomp_core.effects.chain import fractional_shift
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
 from tcomp_core.lines import line_free_pair
-from tcomp_core.simulate_effects import simulate_effect
+from tcomp_core.simulate_effects import effect_forms, simulate_effect
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_diagnose
@@ -194,19 +195,28 @@ def compare(
 
 
 def effect_records(quick: bool):
+    """Every effect in every form the simulator has for it (the fit's form first)."""
     kinds = ("multisine",) if quick else ("multisine", "exhaust")
     for effect in (None, *EFFECT_NAMES):
-        for kind in kinds:
-            sim = simulate_effect(effect, kind, duration=10.0, noise_percent=1.0, seed=3)
-            name = f"sim/{effect or 'none'}/{kind}"
-            yield (
-                effect or "none",
-                name,
-                Record(
-                    time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=name, dt=sim.dt
-                ),
-                sim.gas_held,
-            )
+        for form in effect_forms(effect):
+            for kind in kinds:
+                sim = simulate_effect(
+                    effect, kind, duration=10.0, noise_percent=1.0, seed=3, form=form
+                )
+                name = "/".join(("sim", effect or "none", *((form,) if form else ()), kind))
+                yield (
+                    effect or "none",
+                    name,
+                    Record(
+                        time=sim.time,
+                        tc1=sim.tc1,
+                        tc2=sim.tc2,
+                        ref=sim.gas,
+                        source=name,
+                        dt=sim.dt,
+                    ),
+                    sim.gas_held,
+                )
 
 
 def detailed_records(quick: bool):
