@@ -1,0 +1,160 @@
+"""``tcomp process BAG -o OUT --no-diagnose`` as a whole command, on a recorder-layout bag.
+
+Issue 25 asks each campaign worker to run ``tcomp process`` at >= 1 M pairs/s as a whole command
+(start-up, imports, reading, pairing, estimation with the default ml-eiv and φ measured in
+every window, Kalman reconstruction, writing) on a 10-minute 5 kHz bag written the way a
+recorder writes one (:mod:`recorder_bag`: messages interleaved one by one, 1 MB uncompressed
+chunks, 3 M pairs). This benchmark generates that bag once (cached in ``--cache``), then runs
+the command as a subprocess, ``--repeat`` times, and prints its wall time and pairs/s.
+
+With ``--baseline-tree DIR`` (a checkout of another commit, e.g. a ``git worktree`` of main)
+the command runs alternately from that tree and from this one (``PYTHONPATH``), so both see the
+same load on a shared machine, and the table gives each one's best and median with the ratio
+of this tree's pairs/s to the baseline's. ``--compare`` then runs each tree once more with a
+CSV output (``time,...,gas,gas_variance,tau1,tau2``) and prints how far this tree's τ history
+and gas are from the baseline's: a speed-up must not move them beyond the estimator's noise.
+``--profile FILE`` runs this tree's command once under :mod:`cProfile` and prints the functions
+with the most cumulative and own time.
+
+Usage: ``python bench/bench_process_command.py [--minutes 10] [--rate-hz 5000]
+[--baseline-tree /work/wt-base] [--compare] [--profile out/process.prof]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import pstats
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np
+from recorder_bag import recorder_bag
+
+HERE = Path(__file__).resolve().parents[1]
+
+
+def run_command(
+    tree: Path, bag: Path, output: Path, extra: list[str], profile: Path | None = None
+) -> float:
+    """Wall time of one ``tcomp process`` run from ``tree``'s package, seconds."""
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    # ``python -m`` puts the working directory first on sys.path: run from the tree itself.
+    cwd = str(tree)
+    prefix = [sys.executable]
+    if profile is not None:
+        prefix += ["-m", "cProfile", "-o", str(profile)]
+    command = [*prefix, "-m", "tcomp_core.cli", "process", str(bag), "-o", str(output)]
+    command += ["--no-diagnose", *extra]
+    started = time.perf_counter()
+    done = subprocess.run(command, env=env, cwd=cwd, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - started
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} failed ({done.returncode}):\n{done.stderr}")
+    return wall
+
+
+def read_output_csv(path: Path) -> dict[str, np.ndarray]:
+    """The columns of a ``tcomp process`` CSV output."""
+    table = np.genfromtxt(path, delimiter=",", names=True)
+    return {name: np.asarray(table[name]) for name in table.dtype.names or ()}
+
+
+def compare(baseline: dict[str, np.ndarray], current: dict[str, np.ndarray]) -> None:
+    """Print how far this tree's τ history and gas are from the baseline's."""
+    print("outputs (CSV, same bag), this tree against the baseline:")
+    for name in ("tau1", "tau2", "gas"):
+        old, new = baseline[name], current[name]
+        both = np.isfinite(old) & np.isfinite(new)
+        scale = np.maximum(np.abs(old[both]), 1e-300)
+        relative = np.abs(new[both] - old[both]) / scale
+        print(
+            f"  {name}: {int(both.sum())} rows with both, "
+            f"{int(np.isfinite(old).sum())} / {int(np.isfinite(new).sum())} finite, "
+            f"max rel diff {relative.max(initial=0.0):.3g}, median {np.median(relative):.3g}"
+        )
+    for name in ("tau1", "tau2"):
+        changes_old = np.unique(baseline[name][np.isfinite(baseline[name])]).size
+        changes_new = np.unique(current[name][np.isfinite(current[name])]).size
+        print(f"  distinct {name} values: baseline {changes_old}, this tree {changes_new}")
+
+
+def print_profile(path: Path, count: int = 30) -> None:
+    """The functions with the most cumulative and own time of a cProfile dump."""
+    stats = pstats.Stats(str(path))
+    stats.sort_stats("cumulative").print_stats(count)
+    stats.sort_stats("tottime").print_stats(count)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=10.0)
+    parser.add_argument("--rate-hz", type=int, default=5000)
+    parser.add_argument("--cache", type=Path, default=Path("out/bench_process"))
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--baseline-tree", type=Path, default=None)
+    parser.add_argument("--compare", action="store_true", help="compare CSV outputs")
+    parser.add_argument("--profile", type=Path, default=None, help="cProfile dump to write")
+    parser.add_argument("--skip-timing", action="store_true", help="only --compare/--profile")
+    parser.add_argument("extra", nargs="*", help="further tcomp process options (after --)")
+    args = parser.parse_args(argv)
+    bag = (args.cache / f"recorder_{args.rate_hz}hz_{args.minutes:g}min").resolve()
+    if not (bag / "metadata.yaml").is_file():
+        shutil.rmtree(bag, ignore_errors=True)
+        bag.parent.mkdir(parents=True, exist_ok=True)
+        started = time.perf_counter()
+        recorder_bag(bag, args.minutes, args.rate_hz)
+        print(f"generated {bag} in {time.perf_counter() - started:.1f} s")
+    pairs = round(args.minutes * 60 * args.rate_hz)
+    size_mb = sum(f.stat().st_size for f in bag.iterdir()) / 1e6
+    trees = [("this tree", HERE)]
+    if args.baseline_tree is not None:
+        trees.insert(0, ("baseline", args.baseline_tree.resolve()))
+    print(f"bag: {bag} ({size_mb:.0f} MB, recorder layout), {pairs} pairs")
+    walls: dict[str, list[float]] = {name: [] for name, _ in trees}
+    with tempfile.TemporaryDirectory() as tmp:
+        for run in range(0 if args.skip_timing else args.repeat):
+            for name, tree in trees:
+                output = Path(tmp) / f"out_{run}_{name.replace(' ', '_')}"
+                walls[name].append(run_command(tree, bag, output, args.extra))
+                shutil.rmtree(output, ignore_errors=True)
+                print(f"  run {run + 1} {name}: {walls[name][-1]:.2f} s", flush=True)
+        if not args.skip_timing:
+            print(f"tcomp process BAG -o OUT --no-diagnose {' '.join(args.extra)}")
+            print(f"{'tree':<12} {'best s':>8} {'median s':>9} {'pairs/s':>10} {'median':>10}")
+            rates = {}
+            for name, _ in trees:
+                best, median = min(walls[name]), statistics.median(walls[name])
+                rates[name] = pairs / median
+                print(
+                    f"{name:<12} {best:>8.2f} {median:>9.2f} {pairs / best:>10.4g} "
+                    f"{pairs / median:>10.4g}"
+                )
+            if "baseline" in rates:
+                ratio = rates["this tree"] / rates["baseline"]
+                print(f"this tree / baseline (median pairs/s): {ratio:.2f}x")
+        if args.compare and args.baseline_tree is not None:
+            tables = {}
+            for name, tree in trees:
+                output = Path(tmp) / f"{name.replace(' ', '_')}.csv"
+                run_command(tree, bag, output, args.extra)
+                tables[name] = read_output_csv(output)
+            compare(tables["baseline"], tables["this tree"])
+        if args.profile is not None:
+            args.profile = args.profile.resolve()
+            output = Path(tmp) / "profiled"
+            wall = run_command(HERE, bag, output, args.extra, profile=args.profile)
+            print(f"profiled run (this tree): {wall:.2f} s under cProfile")
+            print_profile(args.profile)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
