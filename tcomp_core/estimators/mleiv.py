@@ -54,20 +54,20 @@ little: assuming φ = 1 on data with φ = 0.16 (K = 2 %) biases τ1 by +0.2 %, �
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import OptimizeResult, least_squares
-from scipy.signal import lfilter
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
 from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
+from .gauss_newton import levenberg_marquardt
 from .result import Estimate, estimate_from_poles
+from .toeplitz import ToeplitzWhitening
 
 __all__ = ["CONFIDENCE", "ml_eiv", "phi_from_data"]
 
@@ -286,41 +286,27 @@ class _CrossRelation:
         whitened, constant = self._whitened_with_constant(x)
         return float((constant @ whitened) / (constant @ constant))
 
-    def _whitened_with_constant(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """L⁻¹ e and L⁻¹ 1 at once, shape (2, M)."""
-        return self.whiten(x, np.stack((self.residual(x), self._ones)))
-
-    @functools.cached_property
-    def _ones(self) -> NDArray[np.float64]:
-        return np.ones(self.rows)
+    def _whitened_with_constant(
+        self, x: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """L⁻¹ e and L⁻¹ 1 (in closed form), each of shape (M,)."""
+        whitening = self._whitening(x)
+        return whitening.apply(self.residual(x)), whitening.constant()
 
     def whiten(self, x: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray:
         """L⁻¹ values with Σ = LLᵀ (Cholesky), shape (M,) or (k, M) as ``values``, in σ2.
 
-        Σ is tridiagonal Toeplitz, so its leading minors are D_k = (r1^(k+2) - r2^(k+2)) /
-        (r1 - r2), r1,2 the roots of r² - d r + o², and its pivots p_k = D_k / D_(k-1). With
-        z = L̃⁻¹e (Σ = L̃ diag(p) L̃ᵀ, L̃ unit lower bidiagonal) and w_k = D_(k-1) z_k / r1^k,
-        the recursion z_k = e_k - (o / p_(k-1)) z_(k-1) becomes the constant-coefficient,
-        stable w_k = D̃_(k-1) e_k - (o / r1) w_(k-1), D̃_k = D_k / r1^(k+1): one
-        :func:`scipy.signal.lfilter` instead of a banded Cholesky factorisation.
+        Σ is tridiagonal Toeplitz: one first-order recursive filter
+        (:class:`~.toeplitz.ToeplitzWhitening`) instead of a banded Cholesky factorisation.
         """
+        return self._whitening(x).apply(values)
+
+    def _whitening(self, x: NDArray[np.float64]) -> ToeplitzWhitening:
+        """The whitening L⁻¹ of Σ(x)."""
         diagonal, off_diagonal = self.covariance_bands(x)
         # d - 2|o| = φ + g² exactly: the discriminant without cancellation.
         root = math.sqrt((self.phi + (1.0 + x[2]) ** 2) * (diagonal - 2.0 * off_diagonal))
-        r1 = 0.5 * (diagonal + root)
-        if not (math.isfinite(r1) and r1 > 0.0):
-            raise EstimationError(f"ml-eiv: the noise covariance is singular (d = {diagonal})")
-        log_q = math.log1p(-root / r1)  # q = r2 / r1 in [0, 1)
-        # D̃_k for k = -1 .. M-1: (1 - q^(k+2)) / (1 - q).
-        minors = np.expm1(self._minor_index * log_q) / math.expm1(log_q)
-        previous, current = minors[:-1], minors[1:]
-        scaled = lfilter([1.0], [1.0, off_diagonal / r1], previous * values, axis=-1)
-        return np.asarray(scaled / np.sqrt(r1 * current * previous))
-
-    @functools.cached_property
-    def _minor_index(self) -> NDArray[np.float64]:
-        """The exponents k + 2 of the minors D̃_k, k = -1 .. M-1, shape (M + 1,)."""
-        return np.arange(1.0, self.rows + 2.0)
+        return ToeplitzWhitening.from_bands(diagonal, off_diagonal, root, self.rows)
 
     def criterion(self, x: NDArray[np.float64]) -> float:
         """J = (e - b)ᵀ Σ⁻¹ (e - b) + (w h)² at the best offset b, degrees C²."""
@@ -431,9 +417,29 @@ def _gain_weight(tc2: NDArray[np.float64]) -> float:
     return max(sigma2, _PRIOR_NOISE_FLOOR * float(np.std(tc2))) / GAIN_PRIOR
 
 
-def _search(problem: _CrossRelation, initial: NDArray[np.float64]) -> OptimizeResult:
-    """Minimise the projected residual's squared norm from ``initial`` within the bounds."""
+def _search(
+    problem: _CrossRelation, initial: NDArray[np.float64], warm: bool = False
+) -> OptimizeResult:
+    """Minimise the projected residual's squared norm from ``initial`` within the bounds.
+
+    From a ``warm`` start (close to the minimum) a lean Levenberg–Marquardt search
+    (:func:`~.gauss_newton.levenberg_marquardt`, the same forward-difference Jacobian and
+    tolerances) goes first, at a fraction of ``least_squares``' own cost; the trust region
+    reflective search of ``least_squares`` runs when it does not converge inside the bounds,
+    and from every other start.
+    """
     low, high = problem.bounds()
+    if warm:
+        found = levenberg_marquardt(
+            problem.projected,
+            initial,
+            (low, high),
+            xtol=1e-12,
+            ftol=1e-12,
+            max_nfev=_MAX_EVALUATIONS,
+        )
+        if found is not None:
+            return found
     return least_squares(
         problem.projected,
         initial,
@@ -634,7 +640,7 @@ def ml_eiv(
     problem = _CrossRelation.from_signals(tc1, tc2, dt, phi, _gain_weight(tc2))
     starts, origin = _start(problem, tc1, tc2, start)
     fit = min(
-        (_search(problem, initial) for initial in starts),
+        (_search(problem, initial, warm=origin == "warm") for initial in starts),
         key=lambda found: (not found.success, found.cost),
     )
     low, high = problem.bounds()
