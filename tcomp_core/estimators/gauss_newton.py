@@ -28,6 +28,8 @@ _EPS = np.finfo(np.float64).eps
 #: Damping of the first failed step, relative to the diagonal of JᵀJ, and its growth.
 _DAMPING_START = 1e-3
 _DAMPING_GROWTH = 10.0
+#: Damping beyond which the search gives up (every step so short it no longer moves x).
+_DAMPING_LIMIT = 1e12
 
 
 def forward_jacobian(
@@ -114,21 +116,26 @@ def levenberg_marquardt(
         nfev += 1
         used += 1
         trial_cost = 0.5 * float(trial_residual @ trial_residual)
-        if not trial_cost < cost:
-            damping = _DAMPING_START if damping == 0.0 else damping * _DAMPING_GROWTH
-            if damping > 1e12:
-                return None
-            continue
-        reduction = cost - trial_cost
-        x, residual, cost = trial, trial_residual, trial_cost
-        damping = damping / _DAMPING_GROWTH if damping > _DAMPING_START else 0.0
+        # As least_squares: a step shorter than xtol ends the search whether or not it lowered
+        # the cost (near the minimum, rounding decides); a lowering below ftol ends it too.
         small_step = float(np.linalg.norm(moved)) < xtol * (xtol + float(np.linalg.norm(x)))
-        if reduction < ftol * cost or small_step:
+        accepted = trial_cost < cost
+        if accepted:
+            small_gain = cost - trial_cost < ftol * cost
+            x, residual, cost = trial, trial_residual, trial_cost
+            damping = damping / _DAMPING_GROWTH if damping > _DAMPING_START else 0.0
+            jacobian = None
+        else:
+            small_gain = False
+            damping = _DAMPING_START if damping == 0.0 else damping * _DAMPING_GROWTH
+        if small_step or small_gain:
             if np.any(np.minimum(x - low, high - x) < edge):
                 return None
-            jacobian = forward_jacobian(fun, x, residual, high)
-            return _result(x, cost, residual, jacobian, nfev, "ftol" if not small_step else "xtol")
-        jacobian = None
+            if jacobian is None:
+                jacobian = forward_jacobian(fun, x, residual, high)
+            return _result(x, cost, residual, jacobian, nfev, "xtol" if small_step else "ftol")
+        if damping > _DAMPING_LIMIT:
+            return None
     return None
 
 

@@ -54,6 +54,7 @@ little: assuming φ = 1 on data with φ = 0.16 (K = 2 %) biases τ1 by +0.2 %, �
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -249,10 +250,18 @@ class _CrossRelation:
         return 1.0 / -np.expm1(-self.dt / np.exp(x[:2]))
 
     def residual(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """e[k] = u1[k] - g u2[k] up to a constant, shape (M,), degrees C."""
+        """e[k] = u1[k] - g u2[k] up to a constant, shape (M,), degrees C.
+
+        e = level + c1 ΔT_m1 - g c2 ΔT_m2 - h reading2, one product with the stacked data.
+        """
         c1, c2 = self.gains(x)
-        reconstruction2 = self.reading2 + c2 * self.step2
-        return self.level + c1 * self.step1 - c2 * self.step2 - x[2] * reconstruction2
+        h = float(x[2])
+        return np.asarray(np.array([1.0, c1, -(1.0 + h) * c2, -h]) @ self._data)
+
+    @functools.cached_property
+    def _data(self) -> NDArray[np.float64]:
+        """level, ΔT_m1, ΔT_m2 and reading2 stacked, shape (4, M)."""
+        return np.stack((self.level, self.step1, self.step2, self.reading2))
 
     def covariance_bands(self, x: NDArray[np.float64]) -> tuple[float, float]:
         """Diagonal d and off-diagonal o (< 0) of the Toeplitz Σ = φR1 + g²R2, in σ2²."""

@@ -13,7 +13,7 @@ one first-order recursive filter (:func:`scipy.signal.lfilter`) instead of a ban
 factorisation. For e = 1 the recursion sums in closed form,
 w_k = (1 - s^(k+1)) (1 - s^(k+2)) / ((1 - s)(1 - s²)), so
 
-    (L⁻¹1)_k = √((1 - s^(k+1)) (1 - s^(k+2)) / ((1 + s^(k+1)) (1 + s^(k+2)))) / ((1 - s) √r1),
+    (L⁻¹1)_k = (1 - s^(k+1)) (1 - s^(k+2)) / ((1 - s)(1 - s²) √(r1 D̃_k D̃_(k-1))),
 
 which costs no filter. Every power enters as s^n - 1 (:func:`powers_minus_one`): one array of
 M + 2 values serves the minors (1 - s^(2n) = -(s^n - 1)(s^n + 1)) and the constant.
@@ -113,16 +113,24 @@ class ToeplitzWhitening:
         powers = self._powers[: self.size + 1]
         return powers * (powers + 2.0) / math.expm1(2.0 * self.log_s)
 
+    @functools.cached_property
+    def _inverse_norm(self) -> NDArray[np.float64]:
+        """1 / √(r1 D̃_k D̃_(k-1)), k = 0 .. M-1, shape (M,)."""
+        minors = self._minors
+        return np.asarray(1.0 / np.sqrt(self.r1 * minors[1:] * minors[:-1]))
+
     def apply(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """L⁻¹ values, shape (M,) or (k, M) as ``values``."""
-        minors = self._minors
-        recursion = lfilter([1.0], [1.0, self.ratio], minors[:-1] * values, axis=-1)
-        return np.asarray(recursion / np.sqrt(self.r1 * minors[1:] * minors[:-1]))
+        recursion = lfilter([1.0], [1.0, self.ratio], self._minors[:-1] * values, axis=-1)
+        return np.asarray(recursion * self._inverse_norm)
 
     def constant(self) -> NDArray[np.float64]:
-        """L⁻¹1, shape (M,), in closed form (no filter)."""
+        """L⁻¹1, shape (M,), in closed form (no filter).
+
+        The recursion's (1 - s^(k+1)) (1 - s^(k+2)) / ((1 - s)(1 - s²)), normalised as
+        :meth:`apply`.
+        """
         powers = self._powers
-        head, tail = powers[:-1], powers[1:]  # s^(k+1) - 1 and s^(k+2) - 1, k = 0 .. M-1
-        shape = (head * tail) / ((head + 2.0) * (tail + 2.0))
-        scale = -math.expm1(self.log_s) * math.sqrt(self.r1)
-        return np.asarray(np.sqrt(shape[: self.size]) / scale)
+        scale = math.expm1(self.log_s) * math.expm1(2.0 * self.log_s)
+        recursion = powers[: self.size] * powers[1 : self.size + 1]
+        return np.asarray(recursion * (self._inverse_norm / scale))
