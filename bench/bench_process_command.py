@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import os
 import pstats
+import resource
 import shutil
 import statistics
 import subprocess
@@ -43,8 +44,12 @@ HERE = Path(__file__).resolve().parents[1]
 
 def run_command(
     tree: Path, bag: Path, output: Path, extra: list[str], profile: Path | None = None
-) -> float:
-    """Wall time of one ``tcomp process`` run from ``tree``'s package, seconds."""
+) -> tuple[float, float]:
+    """Wall and CPU time (user + system) of one ``tcomp process`` run from ``tree``, seconds.
+
+    The CPU time is the child's own: on a machine shared with other jobs it varies less
+    than the wall time, which also counts the time the child waited for a core.
+    """
     env = {**os.environ, "PYTHONPATH": str(tree)}
     # ``python -m`` puts the working directory first on sys.path: run from the tree itself.
     cwd = str(tree)
@@ -53,12 +58,15 @@ def run_command(
         prefix += ["-m", "cProfile", "-o", str(profile)]
     command = [*prefix, "-m", "tcomp_core.cli", "process", str(bag), "-o", str(output)]
     command += ["--no-diagnose", *extra]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     done = subprocess.run(command, env=env, cwd=cwd, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(command)} failed ({done.returncode}):\n{done.stderr}")
-    return wall
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
 
 
 def read_output_csv(path: Path) -> dict[str, np.ndarray]:
@@ -119,27 +127,37 @@ def main(argv: list[str] | None = None) -> int:
         trees.insert(0, ("baseline", args.baseline_tree.resolve()))
     print(f"bag: {bag} ({size_mb:.0f} MB, recorder layout), {pairs} pairs")
     walls: dict[str, list[float]] = {name: [] for name, _ in trees}
+    cpus: dict[str, list[float]] = {name: [] for name, _ in trees}
     with tempfile.TemporaryDirectory() as tmp:
         for run in range(0 if args.skip_timing else args.repeat):
             for name, tree in trees:
                 output = Path(tmp) / f"out_{run}_{name.replace(' ', '_')}"
-                walls[name].append(run_command(tree, bag, output, args.extra))
+                wall, cpu = run_command(tree, bag, output, args.extra)
+                walls[name].append(wall)
+                cpus[name].append(cpu)
                 shutil.rmtree(output, ignore_errors=True)
-                print(f"  run {run + 1} {name}: {walls[name][-1]:.2f} s", flush=True)
+                print(f"  run {run + 1} {name}: {wall:.2f} s wall, {cpu:.2f} s CPU", flush=True)
         if not args.skip_timing:
             print(f"tcomp process BAG -o OUT --no-diagnose {' '.join(args.extra)}")
-            print(f"{'tree':<12} {'best s':>8} {'median s':>9} {'pairs/s':>10} {'median':>10}")
-            rates = {}
+            print(
+                f"{'tree':<12} {'best s':>8} {'median s':>9} {'pairs/s':>10} {'median':>10} "
+                f"{'CPU s':>8} {'pairs/CPU s':>12}"
+            )
+            rates, cpu_rates = {}, {}
             for name, _ in trees:
                 best, median = min(walls[name]), statistics.median(walls[name])
-                rates[name] = pairs / median
+                cpu = statistics.median(cpus[name])
+                rates[name], cpu_rates[name] = pairs / median, pairs / cpu
                 print(
                     f"{name:<12} {best:>8.2f} {median:>9.2f} {pairs / best:>10.4g} "
-                    f"{pairs / median:>10.4g}"
+                    f"{pairs / median:>10.4g} {cpu:>8.2f} {pairs / cpu:>12.4g}"
                 )
             if "baseline" in rates:
-                ratio = rates["this tree"] / rates["baseline"]
-                print(f"this tree / baseline (median pairs/s): {ratio:.2f}x")
+                print(
+                    "this tree / baseline: "
+                    f"{rates['this tree'] / rates['baseline']:.2f}x (median wall pairs/s), "
+                    f"{cpu_rates['this tree'] / cpu_rates['baseline']:.2f}x (median CPU)"
+                )
         if args.compare and args.baseline_tree is not None:
             tables = {}
             for name, tree in trees:
@@ -150,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.profile is not None:
             args.profile = args.profile.resolve()
             output = Path(tmp) / "profiled"
-            wall = run_command(HERE, bag, output, args.extra, profile=args.profile)
+            wall, _ = run_command(HERE, bag, output, args.extra, profile=args.profile)
             print(f"profiled run (this tree): {wall:.2f} s under cProfile")
             print_profile(args.profile)
     return 0
