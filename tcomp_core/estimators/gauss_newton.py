@@ -17,12 +17,12 @@ for the trust region reflective search to find and to report.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult
 
-__all__ = ["levenberg_marquardt"]
+__all__ = ["SearchResult", "levenberg_marquardt"]
 
 _EPS = np.finfo(np.float64).eps
 #: Damping of the first failed step, relative to the diagonal of JᵀJ, and its growth.
@@ -30,6 +30,32 @@ _DAMPING_START = 1e-3
 _DAMPING_GROWTH = 10.0
 #: Damping beyond which the search gives up (every step so short it no longer moves x).
 _DAMPING_LIMIT = 1e12
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """The end of a least-squares search (the fields of ``least_squares``' result used here).
+
+    Attributes
+    ----------
+    x : ndarray, shape (n,)
+        The parameters at the end.
+    cost : float
+        ½‖r‖² there.
+    jac : ndarray, shape (m, n)
+        The Jacobian there.
+    nfev : int
+        Evaluations of the residual, not counting the Jacobian's.
+    success : bool
+    message : str
+    """
+
+    x: NDArray[np.float64]
+    cost: float
+    jac: NDArray[np.float64]
+    nfev: int
+    success: bool
+    message: str
 
 
 def forward_jacobian(
@@ -64,7 +90,7 @@ def levenberg_marquardt(
     gtol: float = 1e-8,
     max_nfev: int = 100,
     edge: float = 1e-6,
-) -> OptimizeResult | None:
+) -> SearchResult | None:
     """Minimise ½‖fun(x)‖² from ``x0`` inside ``bounds``, or None (see the module docstring).
 
     Parameters
@@ -85,10 +111,9 @@ def levenberg_marquardt(
 
     Returns
     -------
-    OptimizeResult or None
-        ``x``, ``cost`` (½‖r‖²), ``fun``, ``jac`` (forward differences at ``x``), ``nfev``
-        (evaluations of ``fun`` not counting the Jacobian's), ``success`` and ``message``, as
-        ``least_squares`` gives them; None when it did not converge inside the bounds.
+    SearchResult or None
+        ``jac`` by forward differences at ``x``; None when the search did not converge
+        inside the bounds.
     """
     low, high = bounds
     x = np.asarray(x0, dtype=np.float64).copy()
@@ -104,7 +129,7 @@ def levenberg_marquardt(
             gradient = jacobian.T @ residual
             normal = jacobian.T @ jacobian
             if float(np.max(np.abs(gradient))) < gtol:
-                return _result(x, cost, residual, jacobian, nfev, "gtol")
+                return _result(x, cost, jacobian, nfev, "gtol")
         scale = np.diag(np.diag(normal))
         try:
             step = np.linalg.solve(normal + damping * scale, -gradient)
@@ -133,26 +158,13 @@ def levenberg_marquardt(
                 return None
             if jacobian is None:
                 jacobian = forward_jacobian(fun, x, residual, high)
-            return _result(x, cost, residual, jacobian, nfev, "xtol" if small_step else "ftol")
+            return _result(x, cost, jacobian, nfev, "xtol" if small_step else "ftol")
         if damping > _DAMPING_LIMIT:
             return None
     return None
 
 
 def _result(
-    x: NDArray[np.float64],
-    cost: float,
-    residual: NDArray[np.float64],
-    jacobian: NDArray[np.float64],
-    nfev: int,
-    reason: str,
-) -> OptimizeResult:
-    return OptimizeResult(
-        x=x,
-        cost=cost,
-        fun=residual,
-        jac=jacobian,
-        nfev=nfev,
-        success=True,
-        message=f"converged ({reason})",
-    )
+    x: NDArray[np.float64], cost: float, jacobian: NDArray[np.float64], nfev: int, reason: str
+) -> SearchResult:
+    return SearchResult(x, cost, jacobian, nfev, True, f"converged ({reason})")

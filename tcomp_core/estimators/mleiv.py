@@ -60,13 +60,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult, least_squares
+from scipy.optimize import least_squares
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
 from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
-from .gauss_newton import levenberg_marquardt
+from .gauss_newton import SearchResult, levenberg_marquardt
 from .result import Estimate, estimate_from_poles
 from .toeplitz import ToeplitzWhitening
 
@@ -378,12 +378,13 @@ def _start(
     problem: _CrossRelation,
     tc1: NDArray[np.float64],
     tc2: NDArray[np.float64],
-    warm: tuple[float, float] | None = None,
+    warm: tuple[float, ...] | None = None,
 ) -> tuple[list[NDArray[np.float64]], str]:
     """Starting x (one or more) and where they came from.
 
-    ``warm``, else β-GTLS with the same φ, else the grid (:func:`_grid_starts`). Every start
-    assumes equal gains; a start outside the search range is not used.
+    ``warm`` (τ1, τ2 in s, and the gain g when it has three entries), else β-GTLS with the
+    same φ, else the grid (:func:`_grid_starts`). These starts assume equal gains; a start
+    outside the search range is not used.
     """
     low, high = problem.bounds()
 
@@ -391,7 +392,9 @@ def _start(
         return bool(np.all(np.isfinite(start) & (start > low) & (start < high)))
 
     if warm is not None:
-        start = np.append(np.log(np.asarray(warm, dtype=np.float64)), 0.0)
+        values = np.asarray(warm, dtype=np.float64)
+        gain = values[2] - 1.0 if values.size == 3 else 0.0
+        start = np.append(np.log(values[:2]), gain)
         if inside(start):
             return [start], "warm"
     try:
@@ -405,11 +408,23 @@ def _start(
 
 
 def _equilibrated_condition(jacobian: NDArray[np.float64]) -> float:
-    """2-norm condition number of the Jacobian with unit-norm columns (inf if a column is 0)."""
+    """2-norm condition number of a two-column Jacobian with unit-norm columns (inf if one is 0).
+
+    For unit columns u, v with cosine c the singular values are √(1 ± |c|), and
+    1 ± |c| = ‖u ± sign(c) v‖² / 2, so the condition is ‖u + sv‖ / ‖u - sv‖ (s = sign c):
+    the SVD's value, each norm taken directly, without the cancellation of 1 - |c| (a
+    condition of 1e7 leaves 1 - |c| at 2e-14), at the cost of two vector sums instead of an
+    SVD of the M × 2 matrix.
+    """
     norms = np.linalg.norm(jacobian, axis=0)
     if not np.all(norms > 0.0):
         return math.inf
-    return float(np.linalg.cond(jacobian / norms))
+    first, second = jacobian[:, 0] / norms[0], jacobian[:, 1] / norms[1]
+    sign = 1.0 if float(first @ second) >= 0.0 else -1.0
+    apart = float(np.linalg.norm(first - sign * second))
+    if apart == 0.0:
+        return math.inf
+    return float(np.linalg.norm(first + sign * second)) / apart
 
 
 def _gain_weight(tc2: NDArray[np.float64]) -> float:
@@ -428,7 +443,7 @@ def _gain_weight(tc2: NDArray[np.float64]) -> float:
 
 def _search(
     problem: _CrossRelation, initial: NDArray[np.float64], warm: bool = False
-) -> OptimizeResult:
+) -> SearchResult:
     """Minimise the projected residual's squared norm from ``initial`` within the bounds.
 
     From a ``warm`` start (close to the minimum) a lean Levenberg–Marquardt search
@@ -439,7 +454,7 @@ def _search(
     """
     low, high = problem.bounds()
     if warm:
-        found = levenberg_marquardt(
+        quick = levenberg_marquardt(
             problem.projected,
             initial,
             (low, high),
@@ -447,9 +462,9 @@ def _search(
             ftol=1e-12,
             max_nfev=_MAX_EVALUATIONS,
         )
-        if found is not None:
-            return found
-    return least_squares(
+        if quick is not None:
+            return quick
+    found = least_squares(
         problem.projected,
         initial,
         jac="2-point",
@@ -457,6 +472,16 @@ def _search(
         xtol=1e-12,
         ftol=1e-12,
         max_nfev=_MAX_EVALUATIONS,
+    )
+    # A dense array: the "2-point" Jacobian without jac_sparsity (typed as a union).
+    jacobian = np.asarray(found.jac, dtype=np.float64)
+    return SearchResult(
+        found.x,
+        float(found.cost),
+        jacobian,
+        int(found.nfev),
+        bool(found.success),
+        str(found.message),
     )
 
 
@@ -600,7 +625,7 @@ def ml_eiv(
     dt: float,
     phi: float | None = None,
     *,
-    start: tuple[float, float] | None = None,
+    start: tuple[float, ...] | None = None,
 ) -> Estimate:
     """ML errors-in-variables estimate: minimise J = eᵀ Σ⁻¹ e + (w h)² over τ1, τ2, g, b.
 
@@ -614,9 +639,10 @@ def ml_eiv(
     phi : float, optional
         Noise variance ratio σ1²/σ2². ``None`` measures it from the data with
         :func:`phi_from_data`.
-    start : (float, float), optional
+    start : (float, float) or (float, float, float), optional
         Time constants τ1, τ2 (s) to start the search from, e.g. the previous window's (a warm
-        start); by default β-GTLS with the same φ, or a log-spaced grid when β-GTLS fails.
+        start), and the gain g (tc1's reading per degree of tc2's, 1 when left out); by
+        default β-GTLS with the same φ, or a log-spaced grid when β-GTLS fails.
 
     Returns
     -------
@@ -657,8 +683,7 @@ def ml_eiv(
         raise EstimationError(f"ml-eiv: the search did not converge ({fit.message})")
     if np.any(np.minimum(fit.x - low, high - fit.x) < 1e-6):
         raise EstimationError(_edge_message(problem, fit.x))
-    # A dense array: the "2-point" Jacobian without jac_sparsity (typed as a union).
-    jacobian = np.asarray(fit.jac, dtype=np.float64)
+    jacobian = fit.jac
     condition = _equilibrated_condition(jacobian[:, :2])
     if not condition < MAX_CONDITION:
         raise NoExcitationError(
