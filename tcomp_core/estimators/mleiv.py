@@ -287,13 +287,28 @@ class _CrossRelation:
         The squared norm is J plus the prior's term, minimised over b.
         """
         whitened, constant = self._whitened_with_constant(x)
-        projected = whitened - constant * ((constant @ whitened) / (constant @ constant))
-        return np.append(projected, self.gain_weight * x[2])
+        offset = float((constant @ whitened) / (constant @ constant))
+        self._offsets[np.asarray(x, dtype=np.float64).tobytes()] = offset
+        result = np.empty(self.rows + 1)
+        np.subtract(whitened, constant * offset, out=result[:-1])
+        result[-1] = self.gain_weight * x[2]
+        return result
 
     def offset(self, x: NDArray[np.float64]) -> float:
-        """The best b of :meth:`projected`: tc1's reading minus g × tc2's at tc2's mean, °C."""
+        """The best b of :meth:`projected`: tc1's reading minus g × tc2's at tc2's mean, °C.
+
+        Remembered from :meth:`projected` at the same x (the search's end has been evaluated).
+        """
+        known = self._offsets.get(np.asarray(x, dtype=np.float64).tobytes())
+        if known is not None:
+            return known
         whitened, constant = self._whitened_with_constant(x)
         return float((constant @ whitened) / (constant @ constant))
+
+    @functools.cached_property
+    def _offsets(self) -> dict[bytes, float]:
+        """The offset b at every x :meth:`projected` was evaluated at (a search's few dozen)."""
+        return {}
 
     def _whitened_with_constant(
         self, x: NDArray[np.float64]
