@@ -10,9 +10,10 @@ the command as a subprocess, ``--repeat`` times, and prints its wall time and pa
 With ``--baseline-tree DIR`` (a checkout of another commit, e.g. a ``git worktree`` of main)
 the command runs alternately from that tree and from this one (``PYTHONPATH``), so both see the
 same load on a shared machine, and the table gives each one's best and median with the ratio
-of this tree's pairs/s to the baseline's. ``--compare`` then runs each tree once more with a
-CSV output (``time,...,gas,gas_variance,tau1,tau2``) and prints how far this tree's τ history
-and gas are from the baseline's: a speed-up must not move them beyond the estimator's noise.
+of this tree's pairs/s to the baseline's (wall and CPU time). ``--compare`` then runs each tree
+once more and prints how far this tree's gas and ``/diagnostics`` (the τ history: each
+re-estimation's τ, intervals, fit error, condition, as the node publishes them, 6 significant
+digits) are from the baseline's: a speed-up must not move them beyond the estimator's noise.
 ``--profile FILE`` runs this tree's command once under :mod:`cProfile` and prints the functions
 with the most cumulative and own time.
 
@@ -23,6 +24,7 @@ Usage: ``python bench/bench_process_command.py [--minutes 10] [--rate-hz 5000]
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import pstats
 import resource
@@ -69,29 +71,51 @@ def run_command(
     return wall, cpu
 
 
-def read_output_csv(path: Path) -> dict[str, np.ndarray]:
-    """The columns of a ``tcomp process`` CSV output."""
-    table = np.genfromtxt(path, delimiter=",", names=True)
-    return {name: np.asarray(table[name]) for name in table.dtype.names or ()}
+def read_output(bag: Path) -> tuple[np.ndarray, list[dict[str, str]]]:
+    """The gas temperatures (degrees C) and the /diagnostics key-values of an output bag."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    from tcomp_core.io import GAS_TOPIC, read_topics
+
+    batches, *_ = read_topics(bag, [GAS_TOPIC])
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    statuses = []
+    with Reader(bag) as reader:
+        wanted = [c for c in reader.connections if c.topic == "/diagnostics"]
+        for connection, _, raw in reader.messages(wanted):
+            array = typestore.deserialize_cdr(raw, connection.msgtype)
+            statuses.append({kv.key: kv.value for kv in array.status[0].values})
+    return np.asarray(batches[GAS_TOPIC].temperature), statuses
 
 
-def compare(baseline: dict[str, np.ndarray], current: dict[str, np.ndarray]) -> None:
-    """Print how far this tree's τ history and gas are from the baseline's."""
-    print("outputs (CSV, same bag), this tree against the baseline:")
-    for name in ("tau1", "tau2", "gas"):
-        old, new = baseline[name], current[name]
-        both = np.isfinite(old) & np.isfinite(new)
-        scale = np.maximum(np.abs(old[both]), 1e-300)
-        relative = np.abs(new[both] - old[both]) / scale
-        print(
-            f"  {name}: {int(both.sum())} rows with both, "
-            f"{int(np.isfinite(old).sum())} / {int(np.isfinite(new).sum())} finite, "
-            f"max rel diff {relative.max(initial=0.0):.3g}, median {np.median(relative):.3g}"
-        )
-    for name in ("tau1", "tau2"):
-        changes_old = np.unique(baseline[name][np.isfinite(baseline[name])]).size
-        changes_new = np.unique(current[name][np.isfinite(current[name])]).size
-        print(f"  distinct {name} values: baseline {changes_old}, this tree {changes_new}")
+def compare(
+    baseline: tuple[np.ndarray, list[dict[str, str]]],
+    current: tuple[np.ndarray, list[dict[str, str]]],
+) -> None:
+    """Print how far this tree's gas and /diagnostics (the τ history) are from the baseline's."""
+    print("outputs (bags, same input), this tree against the baseline:")
+    old, new = baseline[0], current[0]
+    relative = np.abs(new - old) / np.abs(old) if old.size == new.size else np.array([np.inf])
+    print(f"  gas: {old.size} / {new.size} samples, max rel diff {relative.max():.3g}")
+    statuses = list(zip(baseline[1], current[1], strict=False))
+    print(f"  /diagnostics: {len(baseline[1])} / {len(current[1])} statuses")
+    worst: dict[str, float] = {}
+    unequal = 0
+    for before, after in statuses:
+        for key, value in before.items():
+            if after.get(key) == value or key.startswith("latency"):
+                continue
+            unequal += 1
+            try:
+                a, b = float(value), float(after.get(key, "nan"))
+            except ValueError:
+                worst[key] = math.inf
+                continue
+            worst[key] = max(worst.get(key, 0.0), abs(b - a) / max(abs(a), 1e-300))
+    print(f"  values printed differently: {unequal} of {sum(len(s) for s, _ in statuses)}")
+    for key, value in sorted(worst.items(), key=lambda item: -item[1])[:12]:
+        print(f"    {key}: max rel diff {value:.3g}")
 
 
 def print_profile(path: Path, count: int = 30) -> None:
@@ -108,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cache", type=Path, default=Path("out/bench_process"))
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--baseline-tree", type=Path, default=None)
-    parser.add_argument("--compare", action="store_true", help="compare CSV outputs")
+    parser.add_argument("--compare", action="store_true", help="compare the output bags")
     parser.add_argument("--profile", type=Path, default=None, help="cProfile dump to write")
     parser.add_argument("--skip-timing", action="store_true", help="only --compare/--profile")
     parser.add_argument("extra", nargs="*", help="further tcomp process options (after --)")
@@ -159,12 +183,13 @@ def main(argv: list[str] | None = None) -> int:
                     f"{cpu_rates['this tree'] / cpu_rates['baseline']:.2f}x (median CPU)"
                 )
         if args.compare and args.baseline_tree is not None:
-            tables = {}
+            outputs = {}
             for name, tree in trees:
-                output = Path(tmp) / f"{name.replace(' ', '_')}.csv"
+                output = Path(tmp) / f"compared_{name.replace(' ', '_')}"
                 run_command(tree, bag, output, args.extra)
-                tables[name] = read_output_csv(output)
-            compare(tables["baseline"], tables["this tree"])
+                outputs[name] = read_output(output)
+                shutil.rmtree(output, ignore_errors=True)
+            compare(outputs["baseline"], outputs["this tree"])
         if args.profile is not None:
             args.profile = args.profile.resolve()
             output = Path(tmp) / "profiled"
