@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 
 from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
+from ..effects.base import OutputEvidence
 from ..effects.chain import SensorChain
 from ..errors import EstimationError
 from ..lines import NOTCH_Q
@@ -312,7 +313,7 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def _piece(effect: str, expected: bool, intervals: Mapping[str, tuple[float, float]]) -> Piece:
+def _piece(effect: str, expected: bool, fit: OutputEvidence) -> Piece:
     if expected:
         return Piece(
             effect,
@@ -320,7 +321,7 @@ def _piece(effect: str, expected: bool, intervals: Mapping[str, tuple[float, flo
             "ordinary size (the sensors' expected physics, below materiality): compensating "
             "would trade a small known bias for the fit's uncertainty",
         )
-    handling, reason = EFFECTS[effect]().output_handling(intervals)
+    handling, reason = EFFECTS[effect]().output_handling(fit)
     return Piece(effect, handling, reason)
 
 
@@ -376,7 +377,13 @@ def output_model_from_diagnosis(
     expected = set(diagnosis.expected_physics)
     base_taus = (float(diagnosis.base.tau1), float(diagnosis.base.tau2))
     params = dict(final.params)
-    pieces = tuple(_piece(effect, effect in expected, final.intervals) for effect in final.effects)
+    evidence = OutputEvidence(
+        intervals=final.intervals,
+        params=final.params,
+        effects=tuple(final.effects),
+        level_mean_c=diagnosis.context.level_mean_c,
+    )
+    pieces = tuple(_piece(effect, effect in expected, evidence) for effect in final.effects)
     pieces = _lines_the_default_takes_off(pieces, params, first_order_lines)
     refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt, first_order_failure)
     if loose and not refusal:

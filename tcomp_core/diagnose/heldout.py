@@ -29,6 +29,7 @@ from scipy import signal
 from scipy.integrate import trapezoid
 
 from ..effects import FitContext, Model
+from ..effects.base import OutputEvidence
 from ..effects.chain import SHIFT_HALF_TAPS
 from ..lines import ForeignLine
 from ..tolerance import class2_level_tolerance_c
@@ -260,8 +261,14 @@ class Evaluator:
         intervals = covariance.intervals()
         # A piece undone for the dynamics only keeps first order's level: its change and band
         # are compared without their means, as the gas is published.
+        evidence = OutputEvidence(
+            intervals=intervals,
+            params=model.params,
+            effects=model.effects,
+            level_mean_c=self.context.level_mean_c,
+        )
         level_free = any(
-            effect.output_handling(intervals)[0] == "dynamics" for effect in model.instances
+            effect.output_handling(evidence)[0] == "dynamics" for effect in model.instances
         )
         if model.effects and base_taus is not None:
             identification = identify(

@@ -20,7 +20,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["KELVIN", "Effect", "Evidence", "FitContext", "ParamSpec"]
+__all__ = ["KELVIN", "Effect", "Evidence", "FitContext", "OutputEvidence", "ParamSpec"]
 
 #: Offset between degrees Celsius and kelvin.
 KELVIN = 273.15
@@ -132,6 +132,28 @@ class Evidence:
     base_taus: tuple[float, float]
 
 
+@dataclass(frozen=True, kw_only=True)
+class OutputEvidence:
+    """What a compensated gas's treatment of an effect is decided on: the final fit.
+
+    Attributes
+    ----------
+    intervals : mapping of str to (float, float)
+        The fit's 95 % intervals by parameter name.
+    params : mapping of str to float
+        The fit's parameters (``tau1``, ``tau2`` in s and the effects' own).
+    effects : tuple of str
+        Every effect of the fitted model, this one included.
+    level_mean_c : float
+        Mean temperature of the record's readings, degrees C (NaN when unknown).
+    """
+
+    intervals: Mapping[str, tuple[float, float]]
+    params: Mapping[str, float]
+    effects: tuple[str, ...] = ()
+    level_mean_c: float = float("nan")
+
+
 class Effect:
     """Base class of the effects; the hooks return the neutral value (no change)."""
 
@@ -203,12 +225,12 @@ class Effect:
         """
         return True
 
-    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+    def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         """How a compensated gas treats this effect, and why (``compensated`` by default).
 
         One of ``compensated``, ``prior`` (a stated convention fixes what the two signals
-        cannot), ``dynamics`` (undone for the dynamics, the level kept first order's);
-        ``intervals`` are the fit's 95 % intervals (:mod:`tcomp_core.compensation.plan`).
+        cannot), ``dynamics`` (undone for the dynamics, the level kept first order's), judged
+        on the final fit (:mod:`tcomp_core.compensation.plan`).
         """
         return "compensated", "its stage of the sensor chain is inverted"
 

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..tolerance import CLASS2_GAIN, CLASS2_MARGIN, CLASS2_OFFSET_C, beyond_class2
-from .base import Effect, Evidence, FitContext, ParamSpec
+from .base import Effect, Evidence, FitContext, OutputEvidence, ParamSpec
 
 __all__ = ["CLASS2_GAIN", "CLASS2_MARGIN", "CLASS2_OFFSET_C", "Calibration"]
 
@@ -54,7 +54,7 @@ class Calibration(Effect):
         at_mean = (params["gain"] - 1.0) * level + params["offset_c"]
         return beyond_class2(params["gain"], at_mean, level)
 
-    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+    def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         return (
             "dynamics",
             "which sensor's calibration is right cannot be seen: the dynamics use both on tc1's "

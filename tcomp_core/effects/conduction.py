@@ -54,7 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..io.screening import VALID_RANGE_C
-from .base import Effect, FitContext, ParamSpec
+from .base import Effect, FitContext, OutputEvidence, ParamSpec
 
 __all__ = ["FIN_TERMS", "Conduction", "fin_filter", "fin_kappa", "fin_length", "fin_sech"]
 
@@ -192,7 +192,7 @@ class Conduction(Effect):
             }
         return {"tau_leg": SIMULATED_FIN_ML**2 * slow, "tau_p": SIMULATED_SUPPORT_LAG_S}
 
-    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+    def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         return (
             "compensated",
             "fin legs: the common leg time L^2/alpha set by the free-run error, not a prior",

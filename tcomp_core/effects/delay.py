@@ -16,7 +16,7 @@ from scipy import optimize
 
 from ..errors import TcompError
 from ..estimators.beta import beta_gtls
-from .base import Effect, Evidence, FitContext, ParamSpec
+from .base import Effect, Evidence, FitContext, OutputEvidence, ParamSpec
 from .chain import fractional_shift
 
 __all__ = ["MIN_SAMPLES", "Delay"]
@@ -64,7 +64,7 @@ class Delay(Effect):
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         return bool(abs(params["delay_s"]) >= MIN_SAMPLES * evidence.record_dt)
 
-    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+    def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         return "prior", "only the delay between the sensors is seen: the gas is put on tc1's clock"
 
     def _bound(self, context: FitContext) -> float:

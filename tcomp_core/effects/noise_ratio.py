@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from .base import Effect, FitContext
+from .base import Effect, FitContext, OutputEvidence
 
 __all__ = ["NoiseRatio"]
 
@@ -25,7 +25,7 @@ class NoiseRatio(Effect):
         """sigma_ratio = σ2/σ1 (dimensionless): φ = σ1²/σ2² = 0.16."""
         return {"sigma_ratio": 2.5}
 
-    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
+    def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         return "compensated", "the noise levels are measured from the readings"
 
     def fixed(self, context: FitContext) -> dict[str, float]:

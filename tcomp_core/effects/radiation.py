@@ -22,9 +22,16 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from .base import KELVIN, Effect, Evidence, FitContext, ParamSpec
+from ..tolerance import class2_level_tolerance_c
+from .base import KELVIN, Effect, Evidence, FitContext, OutputEvidence, ParamSpec
 
-__all__ = ["MIN_RHO", "Radiation", "air_conductivity", "max_radiation_ratio"]
+__all__ = [
+    "MIN_RHO",
+    "Radiation",
+    "air_conductivity",
+    "max_radiation_ratio",
+    "sensor_level_difference_c",
+]
 
 #: Least radiative/convective conductance of the wire that radiates more that counts as
 #: radiation (a loss below is too small to matter).
@@ -61,6 +68,26 @@ def air_conductivity(temperature_k: float) -> float:
     return 0.0241 * (temperature_k / KELVIN) ** 0.81
 
 
+def sensor_level_difference_c(params: Mapping[str, float], level_mean_c: float) -> float:
+    """The level difference radiation puts between the two readings at ``level_mean_c``, °C.
+
+    The slower (thicker) wire's steady loss less the faster one's, ``(ρs − ρf) (T̄⁴ − Tw⁴) /
+    (4 T̄³)`` with T̄ the mean level in kelvin (``params``: ``rho1``, ``rho2``, ``wall_c``,
+    ``tau1``, ``tau2``). Everything radiation corrects in level is inferred from this
+    difference: the correction is about it over ρs/ρf − 1. Two sensors of one tolerance class
+    differ in level by up to :func:`~tcomp_core.tolerance.class2_level_tolerance_c` by
+    themselves, so a difference within that does not fix the correction (it moves by as much
+    as it is across the tolerance). NaN when the level is unknown.
+    """
+    if not math.isfinite(level_mean_c):
+        return math.nan
+    slow, fast = (2, 1) if params["tau2"] >= params["tau1"] else (1, 2)
+    mean_k = level_mean_c + KELVIN
+    wall_k = params["wall_c"] + KELVIN
+    loss = (mean_k**4 - wall_k**4) / (4.0 * mean_k**3)
+    return float((params[f"rho{slow}"] - params[f"rho{fast}"]) * loss)
+
+
 def max_radiation_ratio(tau_s: float, mean_c: float) -> float:
     """Largest radiative/convective conductance ratio ρ = 4 ε σ T̄³/h physics allows.
 
@@ -84,8 +111,15 @@ class Radiation(Effect):
 
     Material (:meth:`material`) from a radiative/convective conductance of
     :data:`MIN_RHO` on the wire that radiates more. Output (:meth:`output_handling`): the
-    steady radiation error of each wire is removed, in level; when neither ρ is told from 0
-    (both 95 % intervals reach it) only the dynamics, the level staying first order's.
+    steady radiation error of each wire is removed, in level, only where the data fix that
+    level; otherwise only the dynamics, the level staying first order's: when neither ρ is
+    told from 0 (both 95 % intervals reach it), when a calibration shares the model (its
+    offset and gain trade with the wall and the ratios), and when radiation's part of the
+    sensors' level difference (:func:`sensor_level_difference_c`) is within what two class-2
+    sensors may differ by anyway. The level correction is that difference over ρs/ρf − 1, so
+    within the tolerance it rests on the sensors' calibration, not on the data (a hot record
+    with a lagging wall, compensated as radiation beside a calibration, had its gas moved
+    6 °C off: 5.5 → 6.4 %).
     """
 
     name = "radiation"
@@ -119,13 +153,29 @@ class Radiation(Effect):
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         return bool(max(params["rho1"], params["rho2"]) >= MIN_RHO)
 
-    def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
-        lows = [intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
+    def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
+        lows = [fit.intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
         if max(lows) <= 0.0:
             return (
                 "dynamics",
                 "neither wire's radiative ratio rho is told from 0 (95 % intervals reach 0): "
                 "the data do not fix the radiation level, which stays first order's",
+            )
+        if "calibration" in fit.effects:
+            return (
+                "dynamics",
+                "a calibration in the same model takes the sensors' level difference, the only "
+                "thing that fixes the radiation level: it stays first order's",
+            )
+        share = sensor_level_difference_c(fit.params, fit.level_mean_c)
+        tolerance = class2_level_tolerance_c(fit.level_mean_c)
+        if not abs(share) > tolerance:
+            return (
+                "dynamics",
+                f"radiation's part of the sensors' level difference, {share:+.3g} degC at "
+                f"{fit.level_mean_c:.4g} degC, is within what IEC 60584 class 2 alone allows "
+                f"there ({tolerance:.2g} degC): the level correction would rest on the sensors' "
+                "tolerance, not on the data, and the level stays first order's",
             )
         return "compensated", "the steady radiation error of each wire is removed"
 
