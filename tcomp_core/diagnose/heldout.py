@@ -31,6 +31,7 @@ from scipy.integrate import trapezoid
 from ..effects import FitContext, Model
 from ..effects.chain import SHIFT_HALF_TAPS
 from ..lines import ForeignLine
+from ..sections import zero_phase
 from ..tolerance import class2_level_tolerance_c
 from .identification import held_edges, identify
 from .prepare import PreparedData
@@ -146,8 +147,8 @@ class Evaluator:
         return float(trapezoid(power, omega) / math.pi) + in_band
 
     def lowpass(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The comparison low-pass (zero phase)."""
-        return signal.sosfiltfilt(self._sos, values)
+        """The comparison low-pass (zero phase; ``sosfiltfilt``'s result, its state cached)."""
+        return zero_phase(self._sos, values)
 
     @property
     def readings(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

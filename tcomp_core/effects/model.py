@@ -18,8 +18,10 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+import operator
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +31,15 @@ from scipy.optimize import least_squares
 from ..errors import EstimationError
 from ..tolerance import class2_level_tolerance_c
 from .base import KELVIN, Effect, FitContext, ParamSpec
-from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
+from .chain import (
+    SHIFT_HALF_TAPS,
+    Aligned,
+    SensorChain,
+    aligned_reading,
+    gas_and_noise_gain,
+    gas_from_reading,
+    reading_from_gas,
+)
 from .registry import EFFECTS, check_effect_names
 
 __all__ = ["LEVEL", "LeastSquaresProblem", "Model", "make_context"]
@@ -100,6 +110,13 @@ def make_context(
     )
 
 
+#: Every field of a sensor chain, in order (the memo's key), and where its arrays are.
+_CHAIN_FIELDS = operator.attrgetter(*(f.name for f in fields(SensorChain)))
+_ARRAY_FIELDS = tuple(
+    i for i, f in enumerate(fields(SensorChain)) if f.name in ("factor", "film_sos", "additive")
+)
+
+
 class _ChainMemo:
     """The last few inverse-chain results of each sensor, within one fit.
 
@@ -114,18 +131,19 @@ class _ChainMemo:
     SIZE = 3
 
     def __init__(self) -> None:
-        self._entries: dict[int, list[tuple[SensorChain, tuple]]] = {1: [], 2: []}
+        self._entries: dict[int, list[tuple[tuple, SensorChain, tuple]]] = {1: [], 2: []}
+        # Per sensor: the last readings aligned (line off, delay undone), which most columns
+        # of a Jacobian share, with the key and the line array it was computed for.
+        self._aligned: dict[int, tuple[tuple, SensorChain, Aligned]] = {}
 
     @staticmethod
-    def _same(a: SensorChain, b: SensorChain) -> bool:
-        for f in fields(SensorChain):
-            left, right = getattr(a, f.name), getattr(b, f.name)
-            if isinstance(left, np.ndarray) or isinstance(right, np.ndarray):
-                if left is not right:  # arrays (factor, film filter) by identity
-                    return False
-            elif left != right:
-                return False
-        return True
+    def _key(chain: SensorChain) -> tuple:
+        """Every field: scalars by value, arrays (factor, film filter, line) by identity."""
+        key = list(_CHAIN_FIELDS(chain))
+        for i in _ARRAY_FIELDS:
+            if key[i] is not None:
+                key[i] = ("array", id(key[i]))
+        return tuple(key)
 
     def gas(
         self,
@@ -133,14 +151,25 @@ class _ChainMemo:
         chain: SensorChain,
         reading: NDArray[np.float64],
         context: FitContext,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """:func:`gas_from_reading` of ``chain``, from the memo when it was just computed."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
+        """:func:`~.chain.gas_and_noise_gain` of ``chain``, from the memo when just computed."""
         entries = self._entries[sensor]
-        for stored, value in entries:
-            if self._same(stored, chain):
+        key = self._key(chain)
+        for stored, _, value in entries:
+            if stored == key:
                 return value
-        value = gas_from_reading(chain, reading, context.dt, context.noise_kernel)
-        entries.insert(0, (chain, value))
+        aligned = None
+        if chain.additive is not None or chain.delay_s:
+            line = None if chain.additive is None else id(chain.additive)
+            stage = (line, chain.delay_s)
+            found = self._aligned.get(sensor)
+            if found is None or found[0] != stage:
+                # The chain is kept with it: the line's identity stays its own.
+                found = (stage, chain, aligned_reading(chain, reading, context.dt))
+                self._aligned[sensor] = found
+            aligned = found[2]
+        value = gas_and_noise_gain(chain, reading, context.dt, context.noise_kernel, aligned)
+        entries.insert(0, (key, chain, value))
         del entries[self.SIZE :]
         return value
 
@@ -364,8 +393,12 @@ class Model:
     @property
     def phi(self) -> float:
         """Noise variance ratio assumed by the fit."""
+        return self._phi(self.params)
+
+    def _phi(self, params: Mapping[str, float]) -> float:
+        """The noise variance ratio these parameters give the model's effects."""
         for effect in self.instances:
-            value = effect.noise_ratio(self.params)
+            value = effect.noise_ratio(params)
             if value is not None:
                 return value
         return 1.0
@@ -420,37 +453,34 @@ class Model:
         params = self.params if params is None else params
         chains = []
         for sensor in (1, 2):
-            chain = SensorChain(tau=params[f"tau{sensor}"])
+            # The fields each effect sets, later effects over earlier ones.
+            values: dict[str, Any] = {"tau": params[f"tau{sensor}"]}
             if sensor == 2 and self.has_level and params.get(LEVEL, 0.0):
-                chain = replace(chain, offset=params[LEVEL])
+                values["offset"] = params[LEVEL]
             for effect in self.instances:
                 additive = effect.additive(sensor, params, context)
                 if additive is not None:
-                    chain = replace(chain, additive=additive)
+                    values["additive"] = additive
                 gain, offset = effect.calibration(sensor, params)
                 if (gain, offset) != (1.0, 0.0):
-                    chain = replace(chain, gain=gain, offset=offset)
+                    values["gain"], values["offset"] = gain, offset
                 conduction = effect.conduction(sensor, params)
                 if conduction is not None:
-                    fin_ml, tau_p, mode0 = conduction
-                    chain = replace(chain, fin_ml=fin_ml, tau_p=tau_p, mode0=mode0)
+                    values["fin_ml"], values["tau_p"], values["mode0"] = conduction
                 factor = effect.tau_factor(context, params)
                 if factor is not None:
-                    chain = replace(chain, factor=factor)
+                    values["factor"] = factor
                 exponent = effect.level_exponent(params)
                 if exponent is not None:
-                    chain = replace(
-                        chain,
-                        level_exponent=exponent,
-                        level_ref_k=context.level_mean_c + KELVIN,
-                        film_sos=_film_filter(context.dt, context.film_cutoff_hz),
-                    )
+                    values["level_exponent"] = exponent
+                    values["level_ref_k"] = context.level_mean_c + KELVIN
+                    values["film_sos"] = _film_filter(context.dt, context.film_cutoff_hz)
                 radiation = effect.radiation(sensor, params, context)
                 if radiation is not None:
-                    chain = replace(chain, r=radiation[0], wall_k=radiation[1])
+                    values["r"], values["wall_k"] = radiation
                 if sensor == 2 and effect.delay_s(params):
-                    chain = replace(chain, delay_s=effect.delay_s(params))
-            chains.append(chain)
+                    values["delay_s"] = effect.delay_s(params)
+            chains.append(SensorChain(**values))
         return chains[0], chains[1]
 
     def reconstruct(
@@ -480,7 +510,7 @@ class Model:
         memo = _ChainMemo() if memo is None else memo
         gas1, gain1 = memo.gas(1, first, tc1, context)
         gas2, gain2 = memo.gas(2, second, tc2, context)
-        phi = Model(self.effects, params).phi
+        phi = self._phi(params)
         return (gas1 - gas2) / (context.sigma2 * np.sqrt(phi * gain1 + gain2))
 
     def simulate(
