@@ -288,3 +288,27 @@ def test_lag_loop_equals_the_one_loop_for_every_case(r, with_level):
     level = (0.4, 873.0, drive + rng.standard_normal(drive.size)) if with_level else None
     found = _lag_loop(drive, a, 612.5, r, 300.0**4, level)
     assert np.array_equal(found, _lag_loop_reference(drive, a, 612.5, r, 300.0**4, level))
+
+
+def test_velocity_penalty_is_the_second_difference_of_numpy():
+    from tcomp_core.effects.velocity import Velocity
+
+    rng = np.random.default_rng(13)
+    params = {f"velocity_{j}": float(rng.normal()) for j in range(1, 12)}
+    params["velocity_smoothness"] = 0.05
+    coefficients = np.array([0.0, *(params[f"velocity_{j}"] for j in range(1, 12))])
+    expected = 0.05 * np.sqrt(1500) * np.diff(coefficients, 2)
+    assert np.array_equal(Velocity().penalty(params, 1500), expected)
+
+
+def test_sections_from_quadratics_equal_the_array_expressions():
+    rng = np.random.default_rng(21)
+    for _ in range(5000):
+        count = int(rng.integers(1, 6))
+        numerators = np.column_stack((np.ones(count), rng.normal(size=(count, 2))))
+        denominators = np.column_stack((np.ones(count), rng.normal(size=(count, 2))))
+        numerators[:, 1:] *= 10 ** rng.uniform(-3, 2, (count, 2))
+        expected = np.hstack((numerators, denominators))
+        expected[0, :3] /= np.prod(expected[:, :3].sum(axis=1) / expected[:, 3:].sum(axis=1))
+        found = CascadeFilter.from_quadratics(numerators, denominators).sos
+        assert np.array_equal(found, expected)

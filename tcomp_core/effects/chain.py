@@ -177,11 +177,20 @@ class CascadeFilter:
     ) -> CascadeFilter:
         """The sections of matched numerator and denominator quadratics (shape (S, 3) each).
 
-        Scaled to unity gain at DC.
+        Scaled to unity gain at DC, in Python floats: the sums and the product in numpy's
+        order, so the sections are those of the array expressions to the bit.
         """
-        sos = np.hstack((numerators, denominators))
-        sos[0, :3] /= np.prod(sos[:, :3].sum(axis=1) / sos[:, 3:].sum(axis=1))  # unity DC gain
-        return cls(sos=sos)
+        rows = [
+            [*top, *bottom]
+            for top, bottom in zip(
+                np.asarray(numerators).tolist(), np.asarray(denominators).tolist(), strict=True
+            )
+        ]
+        gain = 1.0  # Π (b0 + b1 + b2)/(1 + a1 + a2), the cascade's gain at DC
+        for row in rows:
+            gain *= (row[0] + row[1] + row[2]) / (row[3] + row[4] + row[5])
+        rows[0][:3] = [value / gain for value in rows[0][:3]]
+        return cls(sos=np.array(rows))
 
     @functools.cached_property
     def _rows(self) -> tuple[tuple[float, ...], ...]:
@@ -397,27 +406,31 @@ def _weight_energy(
     weights: NDArray[np.float64], noise_kernel: NDArray[np.float64] | None
 ) -> tuple[float, float]:
     """Σ w_j² and Σ w_j w_(j+1) of the interpolator's weights after the low-pass's kernel."""
-    key = (weights.tobytes(), None if noise_kernel is None else noise_kernel.tobytes())
+    key = (weights.tobytes(), id(noise_kernel))
     found = _ENERGIES.get(key)
-    if found is None:
-        if noise_kernel is not None:
-            weights = np.convolve(weights, noise_kernel)
-        found = (np.sum(weights**2), np.sum(weights[:-1] * weights[1:]))
+    if found is None or found[0] is not noise_kernel:
+        kernel = noise_kernel
+        if kernel is not None:
+            weights = np.convolve(weights, kernel)
+        found = (kernel, (np.sum(weights**2), np.sum(weights[:-1] * weights[1:])))
         if len(_ENERGIES) >= 64:
             _ENERGIES.clear()
         _ENERGIES[key] = found
-    return found
+    return found[1]
 
 
-#: :func:`_weight_energy` by the bytes of its arguments (a fit asks for a few, many times).
-_ENERGIES: dict[tuple[bytes, bytes | None], tuple[float, float]] = {}
+#: :func:`_weight_energy` by the weights' bytes and the kernel's identity (each entry holds
+#: its kernel, so that identity is not another array's while it is kept): a fit asks for a
+#: few, many times.
+_ENERGIES: dict[tuple[bytes, int], tuple[NDArray[np.float64] | None, tuple[float, float]]] = {}
 
 
 def _lag_inverse(
     chain: SensorChain, lagged: NDArray[np.float64], dt: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float, NDArray[np.float64] | float]:
     """Gas from the lag's output (shape (N,) -> (N - 1,)), the poles used and the noise tap."""
-    junction_k = lagged[:-1] + KELVIN
+    # The junction's temperature in kelvin: for a radiative loss or a level-dependent τ only.
+    junction_k = lagged[:-1] + KELVIN if chain.r or chain.level_exponent else None
     # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
     a: NDArray[np.float64] | float = (
         np.exp(-dt / (chain.tau * chain.factor[:-1]))  # the poles without the level's factor
@@ -425,7 +438,9 @@ def _lag_inverse(
         else math.exp(-dt / chain.tau)
     )
     gas, tap = _invert_lag(chain, lagged, a, junction_k)
-    for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
+    if not (chain.level_exponent and junction_k is not None):
+        return gas, a, tap
+    for _ in range(LEVEL_ITERATIONS):
         # τ follows the film temperature, halfway between the junction and the gas: the
         # implicit inverse by fixed-point steps from the constant-τ gas.
         a = chain.poles(lagged.size, dt, 0.5 * (junction_k + _film_gas(chain, gas) + KELVIN))
@@ -540,12 +555,15 @@ def _invert_lag(
     chain: SensorChain,
     lagged: NDArray[np.float64],
     a: NDArray[np.float64] | float,
-    junction_k: NDArray[np.float64],
+    junction_k: NDArray[np.float64] | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
-    """Gas held over each interval from the lagged temperature, and the noise tap c."""
+    """Gas held over each interval from the lagged temperature, and the noise tap c.
+
+    ``junction_k`` (the lagged temperature in K, shape (N - 1,)) is needed with radiation.
+    """
     gas = (lagged[1:] - a * lagged[:-1]) / (1.0 - a)
     tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
-    if chain.r:
+    if chain.r and junction_k is not None:
         cube = junction_k * junction_k * junction_k  # products: ** 3 and ** 4 go through pow
         gas = gas + chain.r * (cube * junction_k - chain.wall_k**4)
         tap = a - (4.0 * chain.r * (1.0 - a)) * cube

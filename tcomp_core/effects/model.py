@@ -110,6 +110,16 @@ def make_context(
     )
 
 
+#: The hooks of :class:`~.base.Effect` that set fields of a sensor chain.
+_CHAIN_HOOKS = (
+    "additive",
+    "calibration",
+    "conduction",
+    "tau_factor",
+    "level_exponent",
+    "radiation",
+    "delay_s",
+)
 #: Every field of a sensor chain, in order (the memo's key), and where its arrays are.
 _CHAIN_FIELDS = operator.attrgetter(*(f.name for f in fields(SensorChain)))
 _ARRAY_FIELDS = tuple(
@@ -319,8 +329,18 @@ class Model:
     def __post_init__(self) -> None:
         names = check_effect_names(self.effects)
         object.__setattr__(self, "effects", names)
-        object.__setattr__(self, "_instances", tuple(_effect(name) for name in names))
+        instances = tuple(_effect(name) for name in names)
+        object.__setattr__(self, "_instances", instances)
         object.__setattr__(self, "params", dict(self.params))
+        # Per chain hook, the effects that override it (the others return the neutral value):
+        # a fit builds the chains for every residual.
+        hooked = {
+            hook: tuple(
+                e for e in instances if getattr(type(e), hook) is not getattr(Effect, hook)
+            )
+            for hook in _CHAIN_HOOKS
+        }
+        object.__setattr__(self, "_hooked", hooked)
 
     @property
     def instances(self) -> tuple[Effect, ...]:
@@ -451,35 +471,48 @@ class Model:
     def chains(self, context: FitContext, params: Mapping[str, float] | None = None):
         """The resolved :class:`SensorChain` of sensors 1 and 2."""
         params = self.params if params is None else params
+        hooked: dict[str, tuple[Effect, ...]] = self._hooked  # type: ignore[attr-defined]
+        has_level = self.has_level
+        # The hooks that do not depend on the sensor, once for both.
+        common: dict[str, Any] = {}
+        for effect in hooked["tau_factor"]:
+            factor = effect.tau_factor(context, params)
+            if factor is not None:
+                common["factor"] = factor
+        for effect in hooked["level_exponent"]:
+            exponent = effect.level_exponent(params)
+            if exponent is not None:
+                common["level_exponent"] = exponent
+                common["level_ref_k"] = context.level_mean_c + KELVIN
+                common["film_sos"] = _film_filter(context.dt, context.film_cutoff_hz)
         chains = []
         for sensor in (1, 2):
-            # The fields each effect sets, later effects over earlier ones.
+            # The fields each effect sets, later effects over earlier ones. Each field has one
+            # hook (the level's offset is set before any), so hook by hook is effect by effect.
             values: dict[str, Any] = {"tau": params[f"tau{sensor}"]}
-            if sensor == 2 and self.has_level and params.get(LEVEL, 0.0):
+            if sensor == 2 and has_level and params.get(LEVEL, 0.0):
                 values["offset"] = params[LEVEL]
-            for effect in self.instances:
+            for effect in hooked["additive"]:
                 additive = effect.additive(sensor, params, context)
                 if additive is not None:
                     values["additive"] = additive
+            for effect in hooked["calibration"]:
                 gain, offset = effect.calibration(sensor, params)
                 if (gain, offset) != (1.0, 0.0):
                     values["gain"], values["offset"] = gain, offset
+            for effect in hooked["conduction"]:
                 conduction = effect.conduction(sensor, params)
                 if conduction is not None:
                     values["fin_ml"], values["tau_p"], values["mode0"] = conduction
-                factor = effect.tau_factor(context, params)
-                if factor is not None:
-                    values["factor"] = factor
-                exponent = effect.level_exponent(params)
-                if exponent is not None:
-                    values["level_exponent"] = exponent
-                    values["level_ref_k"] = context.level_mean_c + KELVIN
-                    values["film_sos"] = _film_filter(context.dt, context.film_cutoff_hz)
+            values.update(common)
+            for effect in hooked["radiation"]:
                 radiation = effect.radiation(sensor, params, context)
                 if radiation is not None:
                     values["r"], values["wall_k"] = radiation
-                if sensor == 2 and effect.delay_s(params):
-                    values["delay_s"] = effect.delay_s(params)
+            for effect in hooked["delay_s"] if sensor == 2 else ():
+                delay_s = effect.delay_s(params)
+                if delay_s:
+                    values["delay_s"] = delay_s
             chains.append(SensorChain(**values))
         return chains[0], chains[1]
 
@@ -676,8 +709,11 @@ class Model:
         memo = _ChainMemo()
         level_sd = _level_prior_sd(context) if any(s.name == LEVEL for s in specs) else None
 
+        # The effects with a penalty (the others add no rows).
+        penalising = [e for e in self.instances if type(e).penalty is not Effect.penalty]
+
         def penalties(values: Mapping[str, float]) -> list[NDArray[np.float64]]:
-            extra = [effect.penalty(values, n_rows) for effect in self.instances]
+            extra = [effect.penalty(values, n_rows) for effect in penalising]
             if level_sd is not None:
                 extra.append(np.array([values[LEVEL] / level_sd]))
             return extra
@@ -688,7 +724,9 @@ class Model:
                 extra = penalties(values)
                 return np.concatenate(extra) if extra else np.empty(0)
             r = self.cross_residual(tc1, tc2, context, values, memo)[rows]
-            r = np.where(np.isfinite(r), r, 1e6)
+            finite = np.isfinite(r)
+            if not finite.all():
+                r = np.where(finite, r, 1e6)
             extra = penalties(values)
             return np.concatenate([r, *extra]) if extra else r
 
