@@ -12,9 +12,10 @@ band is not the model's), over the record less 5 % at each end, and the mean off
 in °C. The truth is the gas averaged over each sample interval where the simulator gives it
 (the effect simulator's exhaust pulses jump within an interval: their point samples sit
 4.7 °C above the interval means, which is what element k of a reconstruction estimates).
-Records: the effect simulator (:mod:`tcomp_core.simulate_effects`, every effect and none,
-multisine and exhaust, K = 1 %) and the detailed simulator (``test/detailed_physics.py``, one
-record per condition and gas signal, ``bench_diagnose``'s grid).
+Records: the effect simulator (:mod:`tcomp_core.simulate_effects`, every effect in each of its
+forms and none, multisine and exhaust, K = 1 %) and the detailed simulator
+(``test/detailed_physics.py``, one record per condition and gas signal, ``bench_diagnose``'s
+grid).
 
 ``--campaign N`` runs the seeded random campaign of issue 24 instead
 (``bench/campaign_draws.py``: the detailed simulator with 0–2 effects in two forms each,
@@ -28,6 +29,9 @@ the identification rule). The summary: confusion of single effects, false alarms
 draws, pairs found, τ error quantiles, the count of draws where compensation is materially
 worse (> 1.1× and > 0.1 point) and the median fall on effect draws whose first-order error is
 at least 1 %.
+
+``--forms`` compensates the effects' forms the fit does not assume (the lumped simulator's
+second forms) with the project's form, against the default path's gas.
 
 ``--stream`` instead times the online compensator (the engine of the node and ``tcomp
 process``) on 10 s at 5 kHz handed over in 5 ms batches, first order against an output model
@@ -57,6 +61,7 @@ from tcomp_core.compensation import (
     compensate,
     default_estimate,
     default_first_order_failure,
+    fit_output_model,
     output_model_from_diagnosis,
 )
 from tcomp_core.diagnose import diagnose
@@ -66,7 +71,7 @@ from tcomp_core.effects.chain import fractional_shift
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
 from tcomp_core.lines import line_free_pair
-from tcomp_core.simulate_effects import simulate_effect
+from tcomp_core.simulate_effects import effect_forms, simulate_effect
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_diagnose
@@ -194,19 +199,28 @@ def compare(
 
 
 def effect_records(quick: bool):
+    """Every effect in every form the simulator has for it (the fit's form first)."""
     kinds = ("multisine",) if quick else ("multisine", "exhaust")
     for effect in (None, *EFFECT_NAMES):
-        for kind in kinds:
-            sim = simulate_effect(effect, kind, duration=10.0, noise_percent=1.0, seed=3)
-            name = f"sim/{effect or 'none'}/{kind}"
-            yield (
-                effect or "none",
-                name,
-                Record(
-                    time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=name, dt=sim.dt
-                ),
-                sim.gas_held,
-            )
+        for form in effect_forms(effect):
+            for kind in kinds:
+                sim = simulate_effect(
+                    effect, kind, duration=10.0, noise_percent=1.0, seed=3, form=form
+                )
+                name = "/".join(("sim", effect or "none", *((form,) if form else ()), kind))
+                yield (
+                    effect or "none",
+                    name,
+                    Record(
+                        time=sim.time,
+                        tc1=sim.tc1,
+                        tc2=sim.tc2,
+                        ref=sim.gas,
+                        source=name,
+                        dt=sim.dt,
+                    ),
+                    sim.gas_held,
+                )
 
 
 def detailed_records(quick: bool):
@@ -220,6 +234,47 @@ def detailed_records(quick: bool):
             Record(time=rec.time, tc1=rec.tc1, tc2=rec.tc2, ref=rec.gas, source=name, dt=rec.dt),
             None,
         )
+
+
+def default_gas(record: Record) -> np.ndarray:
+    """The gas ``tcomp reconstruct`` gives without options: ml-eiv's τ, its lines off, smoother."""
+    plain = default_estimate(record)
+    if plain is None:
+        raise ValueError(f"{record.source}: the default path refuses the record")
+    taus = (float(plain.tau1), float(plain.tau2))
+    readings = line_free_pair(record.tc1, record.tc2, record.dt, plain.lines, taus)
+    return fuse(*readings, record.dt, *taus).gas
+
+
+def form_cost() -> None:
+    """Each effect's forms the fit does not assume, compensated with the project's form.
+
+    The lumped simulator's second forms (:func:`tcomp_core.simulate_effects.effect_forms`),
+    10 s at K = 1 %, multisine and exhaust pulses: the default path's gas against the gas of
+    the output model fitted with the effect named (``reconstruct --effects EFFECT``), e_Tg in
+    the signal band and the full band, and the output model's name (what it applied).
+    """
+    print(f"{'record':<44}{'signal band %':>22}{'full band %':>22}  output model")
+    for effect in EFFECT_NAMES:
+        for form in effect_forms(effect)[1:]:
+            for kind in ("multisine", "exhaust"):
+                sim = simulate_effect(
+                    effect, kind, duration=10.0, noise_percent=1.0, seed=3, form=form
+                )
+                name = f"sim/{effect}/{form}/{kind}"
+                record = Record(
+                    time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=name, dt=sim.dt
+                )
+                model = fit_output_model(record, (effect,))
+                gas = compensate(model, record.time, record.tc1, record.tc2, record.dt).gas
+                plain = default_gas(record)
+                band = model.band_hz if math.isfinite(model.band_hz) else None
+                cells = []
+                for cutoff in (band, None):
+                    first = scores(record, plain, cutoff, sim.gas_held)[0]
+                    final = scores(record, gas, cutoff, sim.gas_held)[0]
+                    cells.append(f"{first:>9.2f} ->{final:>8.2f}")
+                print(f"{name:<44}{cells[0]:>22}{cells[1]:>22}  {model.name()}", flush=True)
 
 
 def stream_cost() -> None:
@@ -435,6 +490,11 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="one signal, one record per row")
     parser.add_argument("--stream", action="store_true", help="time the online compensator")
     parser.add_argument(
+        "--forms",
+        action="store_true",
+        help="the effects' forms the fit does not assume, against the default path's gas",
+    )
+    parser.add_argument(
         "--campaign", type=int, metavar="N", help="run N seeded random draws (issue 24)"
     )
     parser.add_argument("--start", type=int, default=0, help="first draw of the campaign")
@@ -453,6 +513,9 @@ def main() -> None:
     args = parser.parse_args()
     if args.stream:
         stream_cost()
+        return
+    if args.forms:
+        form_cost()
         return
     if args.campaign is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -25,6 +25,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -39,25 +40,40 @@ START_NS = 1_700_000_000 * 1_000_000_000
 BLOCK = 5_000
 
 
-def make_bag(path: Path, minutes: float, seed: int = 7, rate_hz: int = RATE_HZ) -> Path:
-    """Write the benchmark bag block by block (bounded memory), ``rate_hz`` samples/s."""
+def sensor_blocks(
+    minutes: float, rate_hz: int = RATE_HZ, seed: int = 7
+) -> Iterator[tuple[np.ndarray, list[np.ndarray]]]:
+    """The benchmark signal, block by block: stamps (ns) and the tc1, tc2 readings (degrees C).
+
+    A seeded sum of a 10 Hz and a 1 Hz sinusoid about 300 °C through the paper's two
+    first-order lags (:data:`TAU`), white noise of σ = 0.3 °C on each reading; blocks of
+    :data:`BLOCK` samples, ``rate_hz`` samples/s, ``minutes * 60 * rate_hz`` in all.
+    """
     rng = np.random.default_rng(seed)
     count = round(minutes * 60 * rate_hz)
     dt = 1.0 / rate_hz
     poles = [np.exp(-dt / tau) for tau in TAU]
     states = [None, None]
-    writer = McapBagWriter(path, compress=True)
-    qos = offered_qos()
-    channels = [writer.add_channel(topic, TEMPERATURE_TYPE, qos) for topic in DEFAULT_TOPICS[:2]]
     for start in range(0, count, BLOCK):
         index = np.arange(start, min(start + BLOCK, count))
         time_s = index * dt
         gas = 300.0 + 50.0 * np.sin(2 * np.pi * 10.0 * time_s) + 20.0 * np.sin(2 * np.pi * time_s)
         stamps = START_NS + index * (1_000_000_000 // rate_hz)
-        for k, (pole, channel) in enumerate(zip(poles, channels, strict=True)):
+        readings = []
+        for k, pole in enumerate(poles):
             zi = states[k] if states[k] is not None else np.array([pole * gas[0]])
             measured, states[k] = signal.lfilter([1 - pole], [1, -pole], gas, zi=zi)
-            measured = measured + rng.normal(0.0, 0.3, measured.size)
+            readings.append(measured + rng.normal(0.0, 0.3, measured.size))
+        yield stamps, readings
+
+
+def make_bag(path: Path, minutes: float, seed: int = 7, rate_hz: int = RATE_HZ) -> Path:
+    """Write the benchmark bag block by block (bounded memory), ``rate_hz`` samples/s."""
+    writer = McapBagWriter(path, compress=True)
+    qos = offered_qos()
+    channels = [writer.add_channel(topic, TEMPERATURE_TYPE, qos) for topic in DEFAULT_TOPICS[:2]]
+    for stamps, readings in sensor_blocks(minutes, rate_hz, seed):
+        for measured, channel in zip(readings, channels, strict=True):
             writer.write_rows(channel, stamps, encode(stamps, measured, 0.0, "probe"))
     return writer.close()
 

@@ -8,6 +8,7 @@ and the ratio of two sensors' estimates is the φ = σ1²/σ2² that β-GTLS (Eq
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -69,42 +70,68 @@ def welch_spectra(
     'linear' per segment, one-sided densities, units²/Hz; ``test/test_noise_spectra.py``
     compares them), computed on the segments as one array: scipy detrends and transforms
     segment by segment, which made the noise measurement two fifths of the node's estimation
-    time at 5 kHz.
+    time at 5 kHz. ``x`` may hold several signals (shape (k, N)); each gets its spectrum and
+    its cross-spectrum with the one ``y``, whose transform is computed once.
 
     Returns
     -------
     freqs : ndarray, shape (nperseg // 2 + 1,)
         Hz.
-    psd : ndarray
+    psd : ndarray, shape (nperseg // 2 + 1,), or (k, nperseg // 2 + 1) as ``x``
         S_xx.
     cross : ndarray or None
-        S_xy = mean(conj(X) Y) (None without ``y``).
+        S_xy = mean(conj(X) Y), shaped as ``psd`` (None without ``y``).
     """
     step = nperseg - nperseg // 2  # scipy's default overlap: nperseg // 2
-    count = (x.size - nperseg) // step + 1
+    count = (x.shape[-1] - nperseg) // step + 1
     window = signal.get_window("hann", nperseg)
     scale = 1.0 / (np.sum(window**2) / dt)  # density: 1 / (fs Σw²)
     ramp = np.arange(nperseg) - 0.5 * (nperseg - 1)
 
     def transform(values: NDArray[np.float64]) -> NDArray[np.complex128]:
-        segments = np.lib.stride_tricks.sliding_window_view(values, nperseg)[::step][:count]
-        segments = segments - segments.mean(axis=1, keepdims=True)
+        segments = np.lib.stride_tricks.sliding_window_view(values, nperseg, axis=-1)
+        segments = segments[..., ::step, :][..., :count, :]
+        segments = segments - segments.mean(axis=-1, keepdims=True)
         if detrend == "linear":
             slopes = segments @ ramp / np.dot(ramp, ramp)
-            segments = segments - slopes[:, None] * ramp
-        return np.fft.rfft(segments * window, axis=1)
+            segments = segments - slopes[..., None] * ramp
+        return np.fft.rfft(segments * window, axis=-1)
 
     spectra_x = transform(x)
     one_sided = np.full(nperseg // 2 + 1, 2.0 * scale)
     one_sided[0] = scale
     if nperseg % 2 == 0:
         one_sided[-1] = scale
-    psd = np.mean(np.abs(spectra_x) ** 2, axis=0) * one_sided
+    psd = np.mean(np.abs(spectra_x) ** 2, axis=-2) * one_sided
     cross = None
     if y is not None:
-        cross = np.mean(np.conj(spectra_x) * transform(y), axis=0) * one_sided
+        cross = np.mean(np.conj(spectra_x) * transform(y), axis=-2) * one_sided
     freqs = np.asarray(np.fft.rfftfreq(nperseg, dt), dtype=np.float64)
     return freqs, psd, cross
+
+
+@functools.lru_cache(maxsize=64)
+def _chi2_quantile(quantile: float, dof: int) -> float:
+    """The ``quantile`` of χ² with ``dof`` degrees of freedom (cached: scipy's costs 0.5 ms)."""
+    return float(stats.chi2.ppf(quantile, dof))
+
+
+def low_quantile(values: NDArray[np.float64], quantile: float) -> float:
+    """``np.quantile(values, quantile)`` (linear interpolation) of a 1-D array, from a partition.
+
+    The same index, weight and interpolation as numpy's default method, so the same value to
+    the last bit, without its general machinery (which cost more than the partition on the
+    few hundred bins of a noise band).
+    """
+    count = values.size
+    virtual = (count - 1) * quantile  # numpy's "linear" method
+    below = min(max(math.floor(virtual), 0), count - 1)
+    above = min(below + 1, count - 1)
+    weight = virtual - math.floor(virtual)
+    parted = np.partition(values, [below, above] if above != below else below)
+    low, high = float(parted[below]), float(parted[above])
+    difference = high - low
+    return high - difference * (1.0 - weight) if weight >= 0.5 else low + difference * weight
 
 
 def _welch(values: NDArray[np.float64], dt: float) -> tuple[NDArray, NDArray, int]:
@@ -137,8 +164,8 @@ def estimate_noise(values: NDArray[np.float64], dt: float) -> NoiseEstimate:
     nyquist = 0.5 / dt
     band = (freqs >= NOISE_BAND[0] * nyquist) & (freqs <= NOISE_BAND[1] * nyquist)
     dof = 2 * n_segments
-    quantile = float(np.quantile(psd[band], NOISE_QUANTILE))
-    floor = quantile * dof / float(stats.chi2.ppf(NOISE_QUANTILE, dof))
+    quantile = low_quantile(psd[band], NOISE_QUANTILE)
+    floor = quantile * dof / _chi2_quantile(NOISE_QUANTILE, dof)
     return NoiseEstimate(
         sigma=float(np.sqrt(floor / (2.0 * dt))),
         floor=floor,
@@ -184,14 +211,16 @@ _SETTLE_TIME_CONSTANTS = 10.0
 def _difference_spectra(
     x: NDArray[np.float64], y: NDArray[np.float64], dt: float
 ) -> tuple[NDArray, NDArray, NDArray]:
-    """Welch auto-spectrum of x and cross-spectrum of x with y, of their first differences.
+    """Welch auto-spectra of x and cross-spectra of x with y, of their first differences.
 
     First differences flatten the steep low-frequency spectrum of the readings, which would
     otherwise leak through the window's side lobes into the band; dividing by |1 - e^(-iω)|²
-    undoes the difference. Returns (frequencies in Hz, S_xx, S_xy), one-sided, units²/Hz.
+    undoes the difference. ``x`` is one signal (shape (N,)) or several (shape (k, N)), each
+    against the one ``y``. Returns (frequencies in Hz, S_xx, S_xy), one-sided, units²/Hz,
+    S_xx and S_xy shaped (bins,) or (k, bins) as ``x``.
     """
-    step_x, step_y = np.diff(x), np.diff(y)
-    nperseg = int(min(_SEGMENT, max(16, step_x.size // 8), step_x.size))
+    step_x, step_y = np.diff(x, axis=-1), np.diff(y)
+    nperseg = int(min(_SEGMENT, max(16, step_y.size // 8), step_y.size))
     freqs, auto, cross = welch_spectra(step_x, dt, nperseg, "constant", step_y)
     assert cross is not None
     gain = np.maximum(4.0 * np.sin(np.pi * freqs * dt) ** 2, np.finfo(float).tiny)
@@ -209,7 +238,7 @@ def _band_floor(
     as in :func:`estimate_noise`, which harmonic lines (leakage in a few bins) do not reach.
     """
     values, variances = [], []
-    correction = dof / float(stats.chi2.ppf(NOISE_QUANTILE, dof))
+    correction = dof / _chi2_quantile(NOISE_QUANTILE, dof)
     for low, high in itertools.pairwise(edges):
         band = (freqs >= low) & (freqs < high)
         count = int(np.count_nonzero(band))
@@ -223,7 +252,7 @@ def _band_floor(
             values.append(float(np.mean(chosen)))
             variances.append(max(float(np.var(chosen, ddof=1)) / count, 1e-300))
         else:
-            level = float(np.quantile(auto[band], NOISE_QUANTILE)) * correction
+            level = low_quantile(auto[band], NOISE_QUANTILE) * correction
             values.append(level)
             # a χ² floor known to about 1/√(dof/2 · count) relative
             variances.append(max(level**2 * 2.0 / (dof * count), 1e-300))
@@ -289,9 +318,10 @@ def model_noise(
     # The start-up mismatch decays with the fast pole: skip it.
     skip = min(math.ceil(_SETTLE_TIME_CONSTANTS * min(tau1, tau2) / dt), readings[0].size // 4)
     residual = (readings[fast] - predicted)[skip:]
-    freqs, auto_fast, cross_fast = _difference_spectra(readings[fast][skip:], residual, dt)
+    both = np.stack((readings[fast][skip:], readings[slow][skip:]))
+    freqs, autos, crosses = _difference_spectra(both, residual, dt)
+    (auto_fast, auto_slow), (cross_fast, cross_slow) = autos, crosses
     segment = int(min(_SEGMENT, max(16, (residual.size - 1) // 8)))
-    _, auto_slow, cross_slow = _difference_spectra(readings[slow][skip:], residual, dt)
     omega = 2.0 * np.pi * freqs * dt
     ratio = lag_frequency_response(a_fast, omega) / lag_frequency_response(a_slow, omega)
     with np.errstate(divide="ignore", invalid="ignore"):

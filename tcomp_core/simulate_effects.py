@@ -21,11 +21,17 @@ Every sensor starts in equilibrium with the gas at t = 0. Noise follows
 =============  ===============================================================================
 effect         sensor i (τi dTi/dt = Tg − Ti unless stated)
 =============  ===============================================================================
-conduction     Gi(s) = (1 − Si)/(1 + τi s) + Si/(1 + τp s), Si = sech(mLi √(1 + τi s)),
-               mLi = √(tau_leg/τi): a junction between two fin legs on supports lagging τp
+conduction     ``fin legs``: Gi(s) = (1 − Si)/(1 + τi s) + Si/(1 + τp s), Si = sech(mLi
+               √(1 + τi s)), mLi = √(tau_leg/τi): a junction between two fin legs on supports
+               lagging τp. ``lumped prong``: τi dTi/dt = Tg − Ti + κi (Tp − Ti) with a prong
+               τp dTp/dt = Tg − Tp, i.e. Gi(s) = [1 + κi/(1 + τp s)]/(1 + κi + τi s)
 radiation      τi dTi/dt = Tg − Ti − ri (Ti⁴ − Tw⁴), temperatures in kelvin in the law,
-               ri = rhoi / (4 T̄³) with the gas mean T̄ in K (rhoi as the fit's ρi)
-velocity       τi(t) = τi0 (v(t)/v0)^(−m),  v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)
+               ri = rhoi / (4 T̄³) with the gas mean T̄ in K (rhoi as the fit's ρi);
+               ``constant wall``: Tw = wall_c; ``lagging wall``: Tw starts at wall_c and
+               follows the gas through a first-order lag of wall_lag_s (a duct warming up)
+velocity       τi(t) = τi0 (v(t)/v0)^(−m); ``sine``: v(t)/v0 = 1 + depth sin(2π t / period_s
+               + 0.3); ``steps``: the same sine's sign, v/v0 switching between 1 ± depth every
+               half period through a tanh edge of period_s/100 (a valve or throttle moved)
 property       τi(t) = τi0 (Tf/T̄)^property_exponent, film Tf = (Ti + Tg)/2, gas mean T̄ in K
 delay          junction 2 sees the gas δ = delay_s later than junction 1
 calibration    tc2 reads gain · T2 + offset_c
@@ -34,11 +40,17 @@ interference   tc2 reads T2 + interference_c (sin 2π f t + 0.3 sin 6π f t + 0.
 noise_ratio    σ2 = sigma_ratio · σ1, so φ = σ1²/σ2² = 1/sigma_ratio²
 =============  ===============================================================================
 
-Parameters that the fitted effects of :mod:`tcomp_core.effects` also have carry their names
-(``rho1``, ``rho2``, ``wall_c``, ``tau_leg``, ``tau_p``, ``delay_s``, ``gain``, ``offset_c``,
-``interference_hz``, ``property_exponent``), so a record's true parameters compare with a
-fit's by name; those of other forms (a sine of the speed, a line of fixed harmonics) keep
-their own.
+Each effect's forms, its default parameters and the gas level it needs are its own module's
+(:attr:`~tcomp_core.effects.base.Effect.simulation_forms`,
+:meth:`~tcomp_core.effects.base.Effect.simulation_defaults`,
+:attr:`~tcomp_core.effects.base.Effect.simulation_gas`); the physics here shares no code with
+the fitted models. The first form of each effect is the one the fit assumes, the others the
+literature's alternatives: compensation fitted with the project's form on a record made with
+another must not be materially worse than first order (``test/test_effect_forms.py``).
+Parameters that the fitted effects also have carry their names (``rho1``, ``rho2``,
+``wall_c``, ``tau_leg``, ``tau_p``, ``delay_s``, ``gain``, ``offset_c``, ``interference_hz``,
+``property_exponent``), so a record's true parameters compare with a fit's by name; those of
+other forms (a sine of the speed, a prong's κi, a line of fixed harmonics) keep their own.
 """
 
 from __future__ import annotations
@@ -51,6 +63,7 @@ from numpy.typing import NDArray
 from scipy import optimize, signal
 
 from .choices import EFFECT_NAMES
+from .effects import EFFECTS
 from .simulate import PAPER_DT, PAPER_TAU1, PAPER_TAU2, SignalKind, add_noise, gas_signal
 from .validation import check_sample_interval
 
@@ -58,30 +71,27 @@ __all__ = [
     "EFFECT_NAMES",
     "EffectRecord",
     "default_effect_params",
+    "effect_forms",
     "simulate_effect",
 ]
 
-#: Offset between degrees C and kelvin. Kept here so the simulator imports nothing of the
-#: effect library it is meant to test.
+#: Offset between degrees C and kelvin (the simulator's own, as its physics is).
 KELVIN = 273.15
-#: Gas level for ``radiation`` unless the caller sets ``mean``/``amplitude``: radiation only
-#: matters in hot gas, e.g. an exhaust or a combustor.
-RADIATION_MEAN_C = 700.0
-RADIATION_AMPLITUDE_C = 250.0
-#: Radiative to convective conductance 4 r1 T̄³ of sensor 1 (``rho1``) by default.
-RADIATION_RHO1 = 0.08
-#: mL of the slower wire's legs for ``conduction``.
-CONDUCTION_FIN_ML = 1.7
 #: Factors of the product S(s) = Π 1/((1 + a_n)(1 + τ_n s)) of sech simulated as lags.
 FIN_PRODUCT_TERMS = 200
 #: Phase of the velocity modulation at t = 0, rad: v(0) is not at a turning point.
 VELOCITY_PHASE = 0.3
+#: Width of a speed step's tanh edge per period of the ``steps`` velocity form.
+VELOCITY_STEP_EDGE = 0.01
 
 #: Allowed range of each effect parameter: lower bound, upper bound (always excluded), and
 #: whether the lower bound itself is allowed.
 _RANGES: dict[str, tuple[float, float, bool]] = {
     "tau_leg": (0.0, np.inf, False),
     "tau_p": (0.0, np.inf, False),
+    "kappa1": (0.0, np.inf, True),
+    "kappa2": (0.0, np.inf, True),
+    "wall_lag_s": (0.0, np.inf, False),
     "rho1": (0.0, np.inf, True),
     "rho2": (0.0, np.inf, True),
     "wall_c": (-KELVIN, np.inf, False),
@@ -98,9 +108,6 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
 }
 #: Relative amplitudes of the odd harmonics 1, 3, 5 of ``interference`` (a rectified pick-up).
 INTERFERENCE_HARMONICS = ((1, 1.0), (3, 0.3), (5, 0.1))
-#: Exponent of τ ∝ T^p for ``property``: strong (fine wires in air show a few tenths), so that
-#: 10 s of hot gas show it beyond the ordinary gas-property physics at K = 1–2 %.
-PROPERTY_EXPONENT = -0.8
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -124,6 +131,8 @@ class EffectRecord:
         Sample interval in seconds.
     effect : str or None
         The hidden effect, one of :data:`EFFECT_NAMES`; None for plain first-order sensors.
+    form : str
+        The effect's form (:func:`effect_forms`; '' for an effect of one form or none).
     params : dict of str to float
         The effect's true parameters as used (defaults with the caller's overrides).
     sigma1, sigma2 : float
@@ -146,6 +155,7 @@ class EffectRecord:
     tau2: float
     dt: float
     effect: str | None
+    form: str
     params: dict[str, float]
     sigma1: float
     sigma2: float
@@ -164,52 +174,57 @@ def _check_effect(effect: str | None) -> str | None:
     return effect
 
 
-def default_effect_params(effect: str | None, tau1: float, tau2: float) -> dict[str, float]:
+def effect_forms(effect: str | None) -> tuple[str, ...]:
+    """The forms the simulator gives ``effect`` in, the fit's first; ``("",)`` for one form.
+
+    Raises
+    ------
+    ValueError
+        On an unknown effect.
+    """
+    effect = _check_effect(effect)
+    return ("",) if effect is None else EFFECTS[effect].simulation_forms
+
+
+def _check_form(effect: str | None, form: str | None) -> str:
+    """The form, the effect's first when None; raises ValueError naming the known forms."""
+    forms = effect_forms(effect)
+    if form is None:
+        return forms[0]
+    if form not in forms:
+        known = ", ".join(repr(name) for name in forms)
+        raise ValueError(f"unknown form {form!r} of effect {effect!r}; choose one of {known}")
+    return form
+
+
+def default_effect_params(
+    effect: str | None, tau1: float, tau2: float, form: str | None = None
+) -> dict[str, float]:
     """Default true parameters of an effect, strong enough to see in 10 s at K = 1–2 %.
+
+    Each effect states its own (:meth:`~tcomp_core.effects.base.Effect.simulation_defaults`,
+    which lists them with their units).
 
     Parameters
     ----------
     effect : str or None
         One of :data:`EFFECT_NAMES`; None (or ``"none"``) has no parameters.
     tau1, tau2 : float
-        Time constants of the two sensors in seconds; ``radiation`` scales rho2 with them.
+        Time constants of the two sensors in seconds (``radiation`` and the ``lumped prong``
+        conduction scale the thicker wire's parameter with them).
+    form : str, optional
+        One of :func:`effect_forms` (its first by default).
 
     Returns
     -------
     dict of str to float
-        ``conduction``: tau_leg (s; the legs' diffusion time L²/α, so mLi = √(tau_leg/τi)),
-        tau_p (s).
-        ``radiation``: rho1, rho2 (dimensionless: 4 ri T̄³, the radiative to convective
-        conductance at the gas mean T̄), wall_c (degrees C); rho1 = 0.08 and
-        rho2 = rho1 (τ2/τ1)^(1/3), as a thicker wire radiates relatively more (Nu ∝ Re^½).
-        ``velocity``: m (dimensionless), depth (dimensionless), period_s (s).
-        ``property``: property_exponent p of τ ∝ T^p (dimensionless, T in kelvin).
-        ``delay``: delay_s (s). ``calibration``: gain (dimensionless), offset_c (degrees C).
-        ``interference``: interference_hz (Hz) and interference_c, the fundamental's
-        amplitude (degrees C).
-        ``noise_ratio``: sigma_ratio = σ2/σ1 (dimensionless).
     """
     effect = _check_effect(effect)
     tau1, tau2 = _check_tau(tau1, "tau1"), _check_tau(tau2, "tau2")
+    form = _check_form(effect, form)
     if effect is None:
         return {}
-    if effect == "conduction":
-        # mL2 = 1.7 on the slower wire (its supports pull it by sech(1.7) = 35 % at DC).
-        return {"tau_leg": CONDUCTION_FIN_ML**2 * max(tau1, tau2), "tau_p": 1.0}
-    if effect == "radiation":
-        rho1 = RADIATION_RHO1
-        return {"rho1": rho1, "rho2": rho1 * (tau2 / tau1) ** (1.0 / 3.0), "wall_c": 300.0}
-    if effect == "velocity":
-        return {"m": 0.6, "depth": 0.4, "period_s": 6.0}
-    if effect == "property":
-        return {"property_exponent": PROPERTY_EXPONENT}
-    if effect == "delay":
-        return {"delay_s": 0.008}
-    if effect == "calibration":
-        return {"gain": 1.03, "offset_c": -4.0}
-    if effect == "interference":
-        return {"interference_hz": 50.0, "interference_c": 1.0}
-    return {"sigma_ratio": 2.5}
+    return EFFECTS[effect]().simulation_defaults(tau1, tau2, form)
 
 
 def _check_tau(tau: float, name: str) -> float:
@@ -220,15 +235,20 @@ def _check_tau(tau: float, name: str) -> float:
 
 
 def _effect_params(
-    effect: str | None, tau1: float, tau2: float, overrides: Mapping[str, float] | None
+    effect: str | None,
+    tau1: float,
+    tau2: float,
+    overrides: Mapping[str, float] | None,
+    form: str,
 ) -> dict[str, float]:
     """Defaults of ``effect`` with ``overrides`` applied, each checked against its range."""
-    params = default_effect_params(effect, tau1, tau2)
+    params = default_effect_params(effect, tau1, tau2, form)
     for key, value in (overrides or {}).items():
         if key not in params:
             allowed = ", ".join(params) or "none"
+            in_form = f" in form {form!r}" if form else ""
             raise ValueError(
-                f"unknown parameter {key!r} for effect {effect!r}; allowed: {allowed}"
+                f"unknown parameter {key!r} for effect {effect!r}{in_form}; allowed: {allowed}"
             )
         params[key] = float(value)
     for key, value in params.items():
@@ -243,12 +263,9 @@ def _effect_params(
 
 
 def _gas_params(effect: str | None, signal_params: Mapping[str, float] | None) -> dict[str, float]:
-    """Gas signal parameters; hot gas for ``radiation`` unless the caller chose the level."""
-    params = dict(signal_params or {})
-    if effect in ("radiation", "property"):
-        params.setdefault("mean", RADIATION_MEAN_C)
-        params.setdefault("amplitude", RADIATION_AMPLITUDE_C)
-    return params
+    """Gas signal parameters: the effect's own (hot gas for radiation) unless the caller's."""
+    own = {} if effect is None else EFFECTS[effect].simulation_gas
+    return {**own, **(signal_params or {})}
 
 
 def _lti_response(
@@ -310,6 +327,32 @@ def _fin_response(
     )
 
 
+def _prong_response(
+    gas: NDArray[np.float64], tau: float, kappa: float, tau_p: float, step: float
+) -> NDArray[np.float64]:
+    """A junction coupled to a prong that lags the gas, from equilibrium.
+
+    τ dT/dt = Tg − T + κ (Tp − T) and τp dTp/dt = Tg − Tp (the prong is heavy: the junction's
+    heat does not move it), so G(s) = [1 + κ/(1 + τp s)]/(1 + κ + τ s) = (τp s + 1 + κ) /
+    ((τ s + 1 + κ)(τp s + 1)), unity DC gain.
+    """
+    denominator = np.asarray(np.polymul([tau, 1.0 + kappa], [tau_p, 1.0]), dtype=np.float64)
+    return _lti_response([tau_p, 1.0 + kappa], denominator, gas, step)
+
+
+def _warming_wall(
+    gas_k: NDArray[np.float64], wall_k: float, lag_s: float, step: float
+) -> NDArray[np.float64]:
+    """A wall starting at ``wall_k`` that follows the gas through a lag of ``lag_s`` (K, s).
+
+    Linear: the lag's response from equilibrium with the first gas value, plus the initial
+    difference decaying at the lag's rate. ``step`` is the grid spacing of ``gas_k``, s.
+    """
+    time = np.arange(gas_k.size) * step
+    lagged = _lti_response(*_first_order_tf(lag_s), gas_k, step)
+    return np.asarray(lagged + (wall_k - gas_k[0]) * np.exp(-time / lag_s))
+
+
 def _radiation_equilibrium(gas_k: float, r: float, wall_k: float) -> float:
     """Sensor temperature in K with Tg − T − r (T⁴ − Tw⁴) = 0 for constant gas ``gas_k`` (K)."""
     low, high = sorted((gas_k, wall_k))
@@ -324,7 +367,12 @@ def _radiation_equilibrium(gas_k: float, r: float, wall_k: float) -> float:
 
 
 def _radiation_response(
-    gas_k: NDArray[np.float64], tau: float, r: float, wall_k: float, step: float, stride: int
+    gas_k: NDArray[np.float64],
+    tau: float,
+    r: float,
+    wall_k: NDArray[np.float64],
+    step: float,
+    stride: int,
 ) -> NDArray[np.float64]:
     """RK4 solution of τ dT/dt = Tg − T − r (T⁴ − Tw⁴), temperatures in K, from equilibrium.
 
@@ -337,8 +385,8 @@ def _radiation_response(
         Convective time constant in seconds.
     r : float
         Radiative coefficient in K⁻³.
-    wall_k : float
-        Wall temperature in K.
+    wall_k : ndarray, shape (M,)
+        Wall temperature in K on the grid of ``gas_k``.
     step : float
         RK4 step in seconds.
     stride : int
@@ -350,22 +398,24 @@ def _radiation_response(
         Sensor temperature in K every ``stride`` steps.
     """
     gas = gas_k.tolist()
-    rate, wall4, half = 1.0 / tau, wall_k**4, 0.5 * step
-    temp = _radiation_equilibrium(gas[0], r, wall_k)
+    # The gas less the wall's share of the loss, g + r Tw⁴: the balance is then g' − T − r T⁴.
+    drive = (gas_k + r * wall_k**4).tolist()
+    rate, half = 1.0 / tau, 0.5 * step
+    temp = _radiation_equilibrium(gas[0], r, float(wall_k[0]))
     out = [temp]
     i = 0
     # Inlined scalar RK4: a Python loop over floats is ~20x faster than numpy on 2 elements.
     for _ in range((len(gas) - 1) // (2 * stride)):
         for _ in range(stride):
-            g0, gm, g1 = gas[i], gas[i + 1], gas[i + 2]
+            g0, gm, g1 = drive[i], drive[i + 1], drive[i + 2]
             i += 2
-            k1 = (g0 - temp - r * (temp**4 - wall4)) * rate
+            k1 = (g0 - temp - r * temp**4) * rate
             y = temp + half * k1
-            k2 = (gm - y - r * (y**4 - wall4)) * rate
+            k2 = (gm - y - r * y**4) * rate
             y = temp + half * k2
-            k3 = (gm - y - r * (y**4 - wall4)) * rate
+            k3 = (gm - y - r * y**4) * rate
             y = temp + step * k3
-            k4 = (g1 - y - r * (y**4 - wall4)) * rate
+            k4 = (g1 - y - r * y**4) * rate
             temp += step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
         out.append(temp)
     return np.array(out)
@@ -403,10 +453,17 @@ def _level_response(
 
 
 def _velocity_factor(
-    t: NDArray[np.float64], m: float, depth: float, period_s: float
+    t: NDArray[np.float64], m: float, depth: float, period_s: float, form: str
 ) -> NDArray[np.float64]:
-    """τ0/τ(t) = (v(t)/v0)^m with v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3)."""
-    return (1.0 + depth * np.sin(2.0 * np.pi * t / period_s + VELOCITY_PHASE)) ** m
+    """τ0/τ(t) = (v(t)/v0)^m.
+
+    ``sine``: v(t)/v0 = 1 + depth sin(2π t / period_s + 0.3); ``steps``: 1 + depth times that
+    sine's sign, through tanh edges :data:`VELOCITY_STEP_EDGE` of a period wide.
+    """
+    wave = np.sin(2.0 * np.pi * t / period_s + VELOCITY_PHASE)
+    if form == "steps":
+        wave = np.tanh(wave / (2.0 * np.pi * VELOCITY_STEP_EDGE))
+    return (1.0 + depth * wave) ** m
 
 
 def _linear_rk4_response(
@@ -490,6 +547,7 @@ def _delayed_gas(
 
 def _simulate_clean(
     effect: str | None,
+    form: str,
     kind: SignalKind,
     taus: tuple[float, float],
     params: Mapping[str, float],
@@ -508,7 +566,9 @@ def _simulate_clean(
         gas = gas_signal(kind, t, **gas_params)
         step = dt / stride
         if effect == "radiation":
-            wall_k = params["wall_c"] + KELVIN
+            wall_k = np.full(gas.size, params["wall_c"] + KELVIN)
+            if form == "lagging wall":
+                wall_k = _warming_wall(gas + KELVIN, wall_k[0], params["wall_lag_s"], step / 2)
             cube = 4.0 * (float(np.mean(gas)) + KELVIN) ** 3  # rho_i = 4 r_i T̄³
             clean = [
                 _radiation_response(gas + KELVIN, tau, params[rho] / cube, wall_k, step, stride)
@@ -525,7 +585,7 @@ def _simulate_clean(
                 for tau in taus
             ]
         else:
-            factor = _velocity_factor(t, params["m"], params["depth"], params["period_s"])
+            factor = _velocity_factor(t, params["m"], params["depth"], params["period_s"], form)
             clean = [_linear_rk4_response(gas, factor, tau, step, stride) for tau in taus]
         held = _interval_means(gas, 2 * stride)
         return gas[:: 2 * stride], clean[0], clean[1], held
@@ -536,7 +596,12 @@ def _simulate_clean(
         gas, gas2 = _delayed_gas(kind, t, params["delay_s"], gas_params)
     else:
         gas = gas2 = gas_signal(kind, t, **gas_params)
-    if effect == "conduction":
+    if effect == "conduction" and form == "lumped prong":
+        clean1, clean2 = (
+            _prong_response(series, tau, params[kappa], params["tau_p"], step)[::oversample]
+            for series, tau, kappa in zip((gas, gas2), taus, ("kappa1", "kappa2"), strict=True)
+        )
+    elif effect == "conduction":
         clean1, clean2 = (
             _fin_response(series, tau, params["tau_leg"], params["tau_p"], step)[::oversample]
             for series, tau in zip((gas, gas2), taus, strict=True)
@@ -567,6 +632,7 @@ def simulate_effect(
     params: Mapping[str, float] | None = None,
     signal_params: Mapping[str, float] | None = None,
     oversample: int = 20,
+    form: str | None = None,
 ) -> EffectRecord:
     """Simulate two thermocouples in one gas with a hidden effect, in continuous time.
 
@@ -594,6 +660,11 @@ def simulate_effect(
     oversample : int
         Grid points per sample interval of the continuous simulation (rounded up to even for
         ``radiation`` and ``velocity``).
+    form : str, optional
+        The effect's form (:func:`effect_forms`): ``conduction`` as ``fin legs`` or a
+        ``lumped prong``, ``radiation`` to a ``constant wall`` or a ``lagging wall``,
+        ``velocity`` as a ``sine`` or ``steps``; the first, the form the fit assumes, by
+        default.
 
     Returns
     -------
@@ -602,7 +673,7 @@ def simulate_effect(
     Raises
     ------
     ValueError
-        On an unknown effect or parameter, a parameter out of its range, or a non-positive
+        On an unknown effect, form or parameter, a parameter out of its range, or a non-positive
         ``dt``, ``duration``, ``tau1``, ``tau2`` or ``oversample``, or negative
         ``noise_percent``.
     """
@@ -617,10 +688,19 @@ def simulate_effect(
     n = round(duration / dt)
     if n < 2:
         raise ValueError(f"{duration=} s holds fewer than 2 samples at {dt=} s")
-    true_params = _effect_params(effect, tau1, tau2, params)
+    form = _check_form(effect, form)
+    true_params = _effect_params(effect, tau1, tau2, params, form)
     taus = (float(tau1), float(tau2))
     gas, clean1, clean2, held = _simulate_clean(
-        effect, kind, taus, true_params, _gas_params(effect, signal_params), n, dt, int(oversample)
+        effect,
+        form,
+        kind,
+        taus,
+        true_params,
+        _gas_params(effect, signal_params),
+        n,
+        dt,
+        int(oversample),
     )
     phi = true_params["sigma_ratio"] ** -2 if effect == "noise_ratio" else 1.0
     rng = np.random.default_rng(seed)
@@ -636,6 +716,7 @@ def simulate_effect(
         tau2=taus[1],
         dt=dt,
         effect=effect,
+        form=form,
         params=true_params,
         sigma1=sigma1,
         sigma2=sigma2,

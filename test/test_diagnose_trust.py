@@ -15,9 +15,14 @@ from tcomp_core.diagnose.quantisation import detect_quantisation, in_band_varian
 from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_significant
 from tcomp_core.diagnose.result import ModelFit
 from tcomp_core.effects import EFFECT_NAMES, make_context
-from tcomp_core.effects.radiation import Radiation, max_radiation_ratio
+from tcomp_core.effects.radiation import (
+    SIMULATED_GAS_MEAN_C,
+    SIMULATED_RHO1,
+    Radiation,
+    max_radiation_ratio,
+)
 from tcomp_core.io import Record
-from tcomp_core.simulate_effects import RADIATION_MEAN_C, RADIATION_RHO1, simulate_effect
+from tcomp_core.simulate_effects import simulate_effect
 
 
 def _record(sim, name="x"):
@@ -27,8 +32,8 @@ def _record(sim, name="x"):
 def test_radiation_bound_follows_emissivity_one_and_the_weakest_convection():
     # A 50 degC rig cannot radiate like a 700 degC exhaust: the bound grows as T^3 / h_min.
     cold = max_radiation_ratio(0.1168, 50.0)
-    hot = max_radiation_ratio(0.0238, RADIATION_MEAN_C)
-    assert cold < 0.05 < RADIATION_RHO1 < hot
+    hot = max_radiation_ratio(0.0238, SIMULATED_GAS_MEAN_C)
+    assert cold < 0.05 < SIMULATED_RHO1 < hot
     # h_min ~ tau^-1/2, so the bound grows as sqrt(tau).
     assert max_radiation_ratio(0.4, 300.0) / max_radiation_ratio(0.1, 300.0) == pytest.approx(2.0)
     time = np.arange(1000) * 0.002

@@ -335,3 +335,28 @@ def test_an_offset_between_the_sensors_leaves_tau_and_is_reported(kind):
         assert shifted.tau2 == pytest.approx(clean.tau2, rel=1e-6)
         assert shifted.params["offset_c"] == pytest.approx(offset, abs=0.02)
         assert shifted.params["tau1_ci_low"] <= pair.tau1 <= shifted.params["tau1_ci_high"]
+
+
+def test_the_condition_is_the_svds():
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        first = rng.standard_normal(500)
+        second = first * rng.uniform(-3, 3) + rng.standard_normal(500) * 10.0 ** rng.uniform(-6, 1)
+        jacobian = np.stack((first * 10.0 ** rng.uniform(-4, 4), second), axis=1)
+        norms = np.linalg.norm(jacobian, axis=0)
+        expected = np.linalg.cond(jacobian / norms)
+        assert mleiv_module._equilibrated_condition(jacobian) == pytest.approx(expected, rel=1e-6)
+    assert mleiv_module._equilibrated_condition(np.ones((10, 2))) == math.inf
+
+
+def test_a_warm_start_with_the_gain_ends_at_the_same_estimate():
+    pair = make_pair("multisine", noise_percent=2.0, seed=3)
+    tc1, tc2 = pair.tc1, 1.004 * pair.tc2 + 0.8
+    cold = ml_eiv(tc1, tc2, pair.dt, 1.0)
+    for start in [(cold.tau1 * 1.01, cold.tau2 * 0.99), (cold.tau1, cold.tau2, 1.0)]:
+        warm = ml_eiv(tc1, tc2, pair.dt, 1.0, start=start)
+        assert warm.params["start_warm"] == 1.0
+        for key in ("tau1", "tau2"):
+            assert getattr(warm, key) == pytest.approx(getattr(cold, key), rel=1e-7)
+        assert warm.params["gain"] == pytest.approx(cold.params["gain"], rel=1e-9)
+        assert warm.params["tau1_se"] == pytest.approx(cold.params["tau1_se"], rel=1e-5)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from tcomp_core.noise import welch_spectra
+from tcomp_core.noise import low_quantile, welch_spectra
 
 
 @pytest.mark.parametrize("size", [1024, 5000, 10_001])
@@ -25,3 +25,11 @@ def test_welch_and_csd_equal_scipy(size, nperseg, detrend):
     np.testing.assert_allclose(mine_psd, psd, rtol=1e-9, atol=1e-12 * psd.max())
     np.testing.assert_allclose(mine_cross, cross, rtol=1e-9, atol=1e-12 * np.abs(cross).max())
     assert welch_spectra(x, 2e-4, nperseg, detrend)[2] is None
+
+
+@pytest.mark.parametrize("quantile", [0.0, 0.1, 0.2, 0.5, 0.9, 1.0])
+def test_low_quantile_equals_numpy(quantile):
+    rng = np.random.default_rng(round(100 * quantile))
+    for size in [1, 2, 3, 10, 175, 176, 1000]:
+        values = rng.exponential(size=size) * 10.0 ** rng.uniform(-6, 6)
+        assert low_quantile(values, quantile) == float(np.quantile(values, quantile))

@@ -18,6 +18,7 @@ from tcomp_core.simulate_effects import (
     _lti_response,
     _velocity_factor,
     default_effect_params,
+    effect_forms,
     simulate_effect,
 )
 
@@ -94,6 +95,87 @@ def test_conduction_record_lags_plain_sensors_and_reduces_to_them_without_conduc
     assert conducting.params == {"tau_leg": 1.7**2 * conducting.tau2, "tau_p": 1.0}
 
 
+def test_prong_conduction_follows_the_lumped_transfer_function_and_its_own_kappas():
+    # G(s) = [1 + κ/(1 + τp s)]/(1 + κ + τ s): steady sinusoid amplitude and phase at 10 Hz.
+    record = clean("conduction", duration=8.0, form="lumped prong")
+    params = record.params
+    assert set(params) == {"kappa1", "kappa2", "tau_p"}
+    # κ ∝ τ^⅓: the thicker, slower wire couples relatively more to its prong.
+    assert params["kappa2"] / params["kappa1"] == pytest.approx(
+        (record.tau2 / record.tau1) ** (1 / 3)
+    )
+    omega = 2 * np.pi * 10.0
+    settled = record.time > 8.0 - 1.0  # many τp after the start
+    for tau, kappa, reading in (
+        (record.tau1, params["kappa1"], record.clean1),
+        (record.tau2, params["kappa2"], record.clean2),
+    ):
+        s = 1j * omega
+        gain = (1 + kappa / (1 + params["tau_p"] * s)) / (1 + kappa + tau * s)
+        expected = 100.0 + 50.0 * abs(gain) * np.sin(omega * record.time + np.angle(gain))
+        assert np.max(np.abs(reading - expected)[settled]) < 2e-3 * 50.0
+    without = clean(
+        "conduction", duration=2.0, form="lumped prong", params={"kappa1": 0.0, "kappa2": 0.0}
+    )
+    plain = clean(None, duration=2.0)
+    np.testing.assert_allclose(without.clean1, plain.clean1, atol=1e-9)
+    np.testing.assert_allclose(without.clean2, plain.clean2, atol=1e-9)
+
+
+def test_a_warming_wall_starts_at_its_temperature_and_lets_the_radiation_error_fall():
+    steady = {"mean": 800.0, "amplitude": 0.0}
+    fixed = clean("radiation", duration=6.0, signal_params=steady)
+    warming = clean(
+        "radiation",
+        duration=6.0,
+        signal_params=steady,
+        form="lagging wall",
+        params={"wall_lag_s": 3.0},
+    )
+    assert warming.form == "lagging wall" and fixed.form == "constant wall"
+    # At the start both see the same wall; the warming one then approaches the gas, so the
+    # junctions lose less: the radiation error falls towards zero as e^(-t/3 s).
+    assert warming.clean1[0] == pytest.approx(fixed.clean1[0], abs=1e-6)
+    error_start = 800.0 - warming.clean2[0]
+    error_end = 800.0 - warming.clean2[-1]
+    assert error_start > 10.0
+    assert 0.0 < error_end < 0.3 * error_start
+    # A wall that never warms is the constant wall.
+    frozen = clean(
+        "radiation",
+        duration=1.0,
+        signal_params=steady,
+        form="lagging wall",
+        params={"wall_lag_s": 1e9},
+    )
+    np.testing.assert_allclose(frozen.clean2, fixed.clean2[: frozen.clean2.size], atol=1e-6)
+
+
+def test_speed_steps_hold_each_speed_for_half_a_period():
+    time = np.linspace(0.0, 12.0, 120_001)
+    factor = _velocity_factor(time, m=1.0, depth=0.4, period_s=6.0, form="steps")
+    sine = np.sin(2 * np.pi * time / 6.0 + VELOCITY_PHASE)
+    away = np.abs(sine) > 0.5  # beyond the edges (about 0.03 of a period each side)
+    np.testing.assert_allclose(factor[away], 1.0 + 0.4 * np.sign(sine[away]), atol=1e-6)
+    record = clean("velocity", "multisine", duration=6.0, form="steps")
+    sine_record = clean("velocity", "multisine", duration=6.0)
+    assert record.params == sine_record.params
+    assert np.max(np.abs(record.clean2 - sine_record.clean2)) > 0.01 * np.std(record.clean2)
+
+
+@pytest.mark.parametrize("effect", [None, *EFFECT_NAMES])
+def test_each_effect_owns_its_forms_and_the_first_is_the_default(effect):
+    forms = effect_forms(effect)
+    assert len(forms) == len(set(forms)) >= 1
+    for form in forms:
+        record = simulate_effect(effect, "exhaust", duration=0.5, dt=0.001, form=form)
+        assert record.form == form
+        assert record.params == default_effect_params(effect, record.tau1, record.tau2, form)
+    assert simulate_effect(effect, "exhaust", duration=0.5, dt=0.001).form == forms[0]
+    with pytest.raises(ValueError, match="unknown form 'other'"):
+        simulate_effect(effect, duration=0.5, form="other")
+
+
 def test_radiation_steady_state_solves_the_balance_and_reads_low():
     gas_c = 800.0
     record = clean("radiation", duration=1.0, signal_params={"mean": gas_c, "amplitude": 0.0})
@@ -160,7 +242,7 @@ def test_velocity_lag_is_larger_where_the_flow_is_slow():
         lags = []
         for centre in (fast_t, slow_t):
             lag = _phase_lag(reading, record.gas, record.time, centre, omega)
-            factor = _velocity_factor(np.array([centre]), **params)[0]
+            factor = _velocity_factor(np.array([centre]), **params, form="sine")[0]
             # Quasi-static: the lag of a first-order sensor with τ(t) = τ0 / factor.
             assert lag == pytest.approx(np.arctan(omega * tau0 / factor), abs=0.01)
             lags.append(lag)
@@ -238,6 +320,9 @@ def test_every_effect_gives_a_well_formed_record(effect):
         (None, {"params": {"gain": 1.0}}, "'gain'"),
         ("velocity", {"params": {"depth": 1.0}}, "depth"),
         ("conduction", {"params": {"tau_p": 0.0}}, "tau_p"),
+        ("conduction", {"params": {"kappa1": 0.1}}, "'kappa1'.*tau_leg"),
+        ("conduction", {"form": "lumped prong", "params": {"kappa2": -0.1}}, "kappa2"),
+        ("radiation", {"form": "lagging wall", "params": {"wall_lag_s": 0.0}}, "wall_lag_s"),
         (None, {"dt": 0.0}, "dt"),
         (None, {"dt": -0.001}, "dt"),
         (None, {"duration": 0.0}, "duration"),

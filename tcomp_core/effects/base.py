@@ -169,6 +169,30 @@ class Effect:
     #: ``level_c`` (:attr:`tcomp_core.effects.Model.has_level`): two sensors of one class
     #: differ in level by up to their tolerance, which no dynamics explains.
     fits_level: ClassVar[bool] = False
+    #: Forms the lumped simulator (:mod:`tcomp_core.simulate_effects`) gives this effect in.
+    #: The first is the form the fit assumes; the others are forms the literature also uses
+    #: (conduction through a lumped prong as well as fin legs, a wall that warms with the gas,
+    #: flow speed steps), so a record made with one and compensated with the fit's tests the
+    #: compensation against the form of the physics. ``("",)``: one form.
+    simulation_forms: ClassVar[tuple[str, ...]] = ("",)
+    #: Gas signal parameters the simulator uses unless the caller chooses them (hot gas for
+    #: effects that need it), as keywords of :func:`tcomp_core.simulate.gas_signal`.
+    simulation_gas: ClassVar[Mapping[str, float]] = {}
+
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """True parameters of the simulator's records of this effect in ``form``, by name.
+
+        Strong enough to see in 10 s at K = 1–2 %. Parameters the fit also has carry its names,
+        so a record's truth compares with a fit by name; a form's own keep their own.
+
+        Parameters
+        ----------
+        tau1, tau2 : float
+            Time constants of the two sensors, s (> 0).
+        form : str
+            One of :attr:`simulation_forms`.
+        """
+        return {}
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         """Whether a fit of this size is a finding rather than the sensors' ordinary state.

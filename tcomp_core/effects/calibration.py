@@ -45,6 +45,10 @@ class Calibration(Effect):
     fits_level = True
     summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
 
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """Tc2's gain (dimensionless) and offset_c (degrees C): 3 % and -4 degC, beyond class 2."""
+        return {"gain": 1.03, "offset_c": -4.0}
+
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         level = evidence.level_mean_c
         at_mean = (params["gain"] - 1.0) * level + params["offset_c"]

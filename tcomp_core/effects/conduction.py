@@ -68,6 +68,13 @@ MAX_KAPPA = 1.0 / (math.cosh(FIN_ML_RANGE[0]) - 1.0)
 #: Largest initial excess of the supports over their equilibrium, degrees C: the width of the
 #: range any thermocouple reading may take (:data:`tcomp_core.io.screening.VALID_RANGE_C`).
 MAX_SUPPORT_EXCESS_C = VALID_RANGE_C[1] - VALID_RANGE_C[0]
+#: The simulator's fin legs: mL of the slower wire (its supports pull it by sech(1.7) = 35 %
+#: at DC) and the supports' lag, s.
+SIMULATED_FIN_ML = 1.7
+SIMULATED_SUPPORT_LAG_S = 1.0
+#: The simulator's lumped prong: the slower wire's conductance to its prong over its convective
+#: conductance (the fast band reads 1/(1 + 0.4) = 71 % of the gas's swing).
+SIMULATED_PRONG_KAPPA = 0.4
 
 
 def fin_kappa(fin_ml: float) -> float:
@@ -194,6 +201,24 @@ class Conduction(Effect):
     name = "conduction"
     max_tau_factor = 1.0 + MAX_KAPPA
     max_tau_fall = math.inf
+
+    simulation_forms = ("fin legs", "lumped prong")
+
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """``fin legs``: tau_leg, tau_p (s). ``lumped prong``: kappa1, kappa2, tau_p.
+
+        The prong form is the lumped model, G = [1 + κ/(1 + τp s)]/(1 + κ + τ s): the junction
+        exchanges heat with a prong that lags the gas. Its conductance to the prong (∝ d²) over
+        the convective one (h d² with h ∝ d^-½) grows as d^½ ∝ τ^⅓, so κi ∝ τi^⅓.
+        """
+        slow = max(tau1, tau2)
+        if form == "lumped prong":
+            return {
+                "kappa1": SIMULATED_PRONG_KAPPA * (tau1 / slow) ** (1.0 / 3.0),
+                "kappa2": SIMULATED_PRONG_KAPPA * (tau2 / slow) ** (1.0 / 3.0),
+                "tau_p": SIMULATED_SUPPORT_LAG_S,
+            }
+        return {"tau_leg": SIMULATED_FIN_ML**2 * slow, "tau_p": SIMULATED_SUPPORT_LAG_S}
 
     def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
         return (

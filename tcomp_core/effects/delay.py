@@ -54,6 +54,11 @@ class Delay(Effect):
 
     name = "delay"
     summary = "tc2 sees the gas later than tc1 (delay_s)"
+
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """delay_s (s) by which junction 2 sees the gas later: 8 ms, 4 samples at 500 Hz."""
+        return {"delay_s": 0.008}
+
     max_tau_factor = math.inf
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:

@@ -153,6 +153,10 @@ class Interference(Effect):
     )
     setting_choices = ({"interference_channel": 2.0}, {"interference_channel": 1.0})
 
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """interference_hz (Hz) and interference_c, the fundamental's amplitude (degrees C)."""
+        return {"interference_hz": 50.0, "interference_c": 1.0}
+
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         channel = int(params["interference_channel"])
         line = find_line(*evidence.readings, evidence.dt, *evidence.base_taus, channel)

@@ -21,6 +21,10 @@ class NoiseRatio(Effect):
     name = "noise_ratio"
     summary = "the sensors' noise variances differ (phi from the spectra)"
 
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """sigma_ratio = σ2/σ1 (dimensionless): φ = σ1²/σ2² = 0.16."""
+        return {"sigma_ratio": 2.5}
+
     def output_handling(self, intervals: Mapping[str, tuple[float, float]]) -> tuple[str, str]:
         return "compensated", "the noise levels are measured from the readings"
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +27,12 @@ __all__ = ["EXPONENT_LIMIT", "Property", "tau_swing"]
 
 #: Largest |p| of τ ∝ T^p that gas and wire properties can produce.
 EXPONENT_LIMIT = 1.5
+#: The simulator's exponent: strong (fine wires in air show a few tenths), so that 10 s of hot
+#: gas show it beyond the ordinary gas-property physics at K = 1–2 %.
+SIMULATED_EXPONENT = -0.8
+#: The simulator's hot gas for it, degrees C (mean and amplitude).
+SIMULATED_GAS_MEAN_C = 700.0
+SIMULATED_GAS_AMPLITUDE_C = 250.0
 
 
 class Property(Effect):
@@ -34,6 +41,14 @@ class Property(Effect):
     name = "property"
     summary = "tau follows the temperature level through the gas properties (property_exponent)"
     output_error_params = ("property_exponent",)
+    simulation_gas: ClassVar[Mapping[str, float]] = {
+        "mean": SIMULATED_GAS_MEAN_C,
+        "amplitude": SIMULATED_GAS_AMPLITUDE_C,
+    }
+
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """property_exponent p of τ ∝ T^p (dimensionless, T in kelvin), in hot gas."""
+        return {"property_exponent": SIMULATED_EXPONENT}
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         return (

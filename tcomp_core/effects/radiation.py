@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +44,13 @@ WIRE_RHO_C_MIN = 2.8e6
 NUSSELT_MIN = 0.3
 #: Least wall temperature, K: no duct or test cell wall is colder than 200 K.
 WALL_MIN_K = 200.0
+#: The simulator's radiation: the fast wire's ρ, the wall (constant, or its temperature at the
+#: start when it warms with the gas, degrees C), the warming wall's lag (s), and the hot gas.
+SIMULATED_RHO1 = 0.08
+SIMULATED_WALL_C = 300.0
+SIMULATED_WALL_LAG_S = 20.0
+SIMULATED_GAS_MEAN_C = 700.0
+SIMULATED_GAS_AMPLITUDE_C = 250.0
 
 
 def air_conductivity(temperature_k: float) -> float:
@@ -85,6 +93,28 @@ class Radiation(Effect):
     summary = (
         "radiation to the wall lowers the reading with the temperature level (rho1, rho2, wall)"
     )
+
+    simulation_forms = ("constant wall", "lagging wall")
+    simulation_gas: ClassVar[Mapping[str, float]] = {
+        "mean": SIMULATED_GAS_MEAN_C,
+        "amplitude": SIMULATED_GAS_AMPLITUDE_C,
+    }
+
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """rho1, rho2 (4 ri T̄³ at the gas mean), wall_c (degrees C); ``lagging wall``: wall_lag_s.
+
+        ρ2 = ρ1 (τ2/τ1)^⅓, a thicker wire radiating relatively more (Nu ∝ Re^½). The lagging
+        wall starts at wall_c and follows the gas through a first-order lag of wall_lag_s (a
+        duct warming up), so the radiation error drifts over the record.
+        """
+        params = {
+            "rho1": SIMULATED_RHO1,
+            "rho2": SIMULATED_RHO1 * (tau2 / tau1) ** (1.0 / 3.0),
+            "wall_c": SIMULATED_WALL_C,
+        }
+        if form == "lagging wall":
+            params["wall_lag_s"] = SIMULATED_WALL_LAG_S
+        return params
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         return bool(max(params["rho1"], params["rho2"]) >= MIN_RHO)

@@ -28,6 +28,10 @@ _DEGREE = 3
 #: interpolates the held-out blocks better when s(t) changes slowly, the softer one lets a
 #: fast, strong change (a period of a few knot spacings) through.
 SMOOTHNESS_CHOICES = (0.05, 0.01)
+#: The simulator's flow: τ ∝ v^-m, the speed's relative swing and its period, s.
+SIMULATED_EXPONENT = 0.6
+SIMULATED_DEPTH = 0.4
+SIMULATED_PERIOD_S = 6.0
 
 
 def _basis(context: FitContext) -> NDArray[np.float64]:
@@ -56,6 +60,15 @@ class Velocity(Effect):
     uses_sample_times = True
     summary = "a changing flow velocity scales both time constants together (spline of log s(t))"
     setting_choices = tuple({"velocity_smoothness": value} for value in SMOOTHNESS_CHOICES)
+    simulation_forms = ("sine", "steps")
+
+    def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
+        """m, depth, period_s: v/v0 = 1 + depth sin(2π t/period_s), or steps between 1 ± depth.
+
+        Steps (a valve or a throttle moved) hold each speed half a period; a smooth spline of
+        log s(t), the fit's form, can only round them.
+        """
+        return {"m": SIMULATED_EXPONENT, "depth": SIMULATED_DEPTH, "period_s": SIMULATED_PERIOD_S}
 
     def __init__(self) -> None:
         self._cache: tuple[int, float, NDArray[np.float64]] | None = None

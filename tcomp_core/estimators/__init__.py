@@ -59,6 +59,7 @@ __all__ = [
     "ml_eiv",
     "phi_from_data",
     "tdr_kee",
+    "warm_start",
 ]
 
 #: The paper's five difference-equation estimators (all but TDR-Kee).
@@ -77,7 +78,7 @@ def estimate(
     alpha: float | None = None,
     prefilter_hz: float | None = None,
     names: tuple[str, str] = ("tc1", "tc2"),
-    start: tuple[float, float] | None = None,
+    start: tuple[float, ...] | None = None,
     reject_lines: bool | None = None,
 ) -> Estimate:
     """Estimate the time constants of two thermocouples from their signals alone.
@@ -105,9 +106,11 @@ def estimate(
         Bandwidth of a zero-phase Butterworth pre-filter applied to both signals first, Hz.
     names : pair of str
         What to call the signals in error messages (columns, topics).
-    start : (float, float), optional
+    start : (float, float) or (float, float, float), optional
         τ1, τ2 (s) to start ``ml-eiv``'s search from (a warm start, e.g. the previous
-        window's); ignored by the other methods, which are not iterative.
+        window's), and the gain between the sensors (``params["gain"]``, 1 when left out);
+        ignored by the other methods, which are not iterative. The refits after lines are
+        notched and after φ is measured start from the first fit's τ and gain.
     reject_lines : bool, optional
         Look for spectral lines one sensor carries and the other does not (mains pick-up,
         :func:`tcomp_core.lines.foreign_lines`) and, where there are any, estimate again with
@@ -163,7 +166,7 @@ def estimate(
         reject_lines = method == "ml-eiv"
     ratio = phi  # the closure below needs it bound as a float
 
-    def fit(a: NDArray[np.float64], b: NDArray[np.float64], warm: tuple[float, float] | None):
+    def fit(a: NDArray[np.float64], b: NDArray[np.float64], warm: tuple[float, ...] | None):
         return _dispatch(a, b, dt, method, ratio, alpha, warm)
 
     def refit(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, float]:
@@ -184,7 +187,7 @@ def estimate(
     if lines:
         frequencies = [line.frequency_hz for line in lines]
         notched = notch(first, dt, frequencies), notch(second, dt, frequencies)
-        warm = start if result is None else (result.tau1, result.tau2)
+        warm = start if result is None else warm_start(result)
         try:
             result = replace(fit(*notched, warm), lines=lines)
         except TcompError:
@@ -202,11 +205,19 @@ def estimate(
         except DataError:  # the model leaves no noise on one channel: keep the first φ
             measured = False
     if measured:
-        result = _dispatch(first, second, dt, method, phi, alpha, (result.tau1, result.tau2))
+        result = _dispatch(first, second, dt, method, phi, alpha, warm_start(result))
         result = replace(result, params={**result.params, "phi_estimated": 1.0}, lines=lines)
     if prefilter_hz is None:
         return result
     return replace(result, prefilter_hz=float(prefilter_hz))
+
+
+def warm_start(result: Estimate) -> tuple[float, ...]:
+    """τ1, τ2 (s) of an estimate, and its gain when it has one: a start for ``ml-eiv``."""
+    gain = result.params.get("gain")
+    if gain is None:
+        return (result.tau1, result.tau2)
+    return (result.tau1, result.tau2, gain)
 
 
 def _dispatch(
@@ -216,7 +227,7 @@ def _dispatch(
     method: str,
     phi: float,
     alpha: float | None,
-    start: tuple[float, float] | None,
+    start: tuple[float, ...] | None,
 ) -> Estimate:
     """Run ``method`` on validated signals."""
     if method == "tdr-kee":

@@ -60,14 +60,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import OptimizeResult, least_squares
-from scipy.signal import lfilter
+from scipy.optimize import least_squares
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
 from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
+from .gauss_newton import SearchResult, levenberg_marquardt
 from .result import Estimate, estimate_from_poles
+from .toeplitz import ToeplitzWhitening
 
 __all__ = ["CONFIDENCE", "ml_eiv", "phi_from_data"]
 
@@ -249,10 +250,18 @@ class _CrossRelation:
         return 1.0 / -np.expm1(-self.dt / np.exp(x[:2]))
 
     def residual(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """e[k] = u1[k] - g u2[k] up to a constant, shape (M,), degrees C."""
+        """e[k] = u1[k] - g u2[k] up to a constant, shape (M,), degrees C.
+
+        e = level + c1 ΔT_m1 - g c2 ΔT_m2 - h reading2, one product with the stacked data.
+        """
         c1, c2 = self.gains(x)
-        reconstruction2 = self.reading2 + c2 * self.step2
-        return self.level + c1 * self.step1 - c2 * self.step2 - x[2] * reconstruction2
+        h = float(x[2])
+        return np.asarray(np.array([1.0, c1, -(1.0 + h) * c2, -h]) @ self._data)
+
+    @functools.cached_property
+    def _data(self) -> NDArray[np.float64]:
+        """level, ΔT_m1, ΔT_m2 and reading2 stacked, shape (4, M)."""
+        return np.stack((self.level, self.step1, self.step2, self.reading2))
 
     def covariance_bands(self, x: NDArray[np.float64]) -> tuple[float, float]:
         """Diagonal d and off-diagonal o (< 0) of the Toeplitz Σ = φR1 + g²R2, in σ2²."""
@@ -278,49 +287,50 @@ class _CrossRelation:
         The squared norm is J plus the prior's term, minimised over b.
         """
         whitened, constant = self._whitened_with_constant(x)
-        projected = whitened - constant * ((constant @ whitened) / (constant @ constant))
-        return np.append(projected, self.gain_weight * x[2])
+        offset = float((constant @ whitened) / (constant @ constant))
+        self._offsets[np.asarray(x, dtype=np.float64).tobytes()] = offset
+        result = np.empty(self.rows + 1)
+        np.subtract(whitened, constant * offset, out=result[:-1])
+        result[-1] = self.gain_weight * x[2]
+        return result
 
     def offset(self, x: NDArray[np.float64]) -> float:
-        """The best b of :meth:`projected`: tc1's reading minus g × tc2's at tc2's mean, °C."""
+        """The best b of :meth:`projected`: tc1's reading minus g × tc2's at tc2's mean, °C.
+
+        Remembered from :meth:`projected` at the same x (the search's end has been evaluated).
+        """
+        known = self._offsets.get(np.asarray(x, dtype=np.float64).tobytes())
+        if known is not None:
+            return known
         whitened, constant = self._whitened_with_constant(x)
         return float((constant @ whitened) / (constant @ constant))
 
-    def _whitened_with_constant(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """L⁻¹ e and L⁻¹ 1 at once, shape (2, M)."""
-        return self.whiten(x, np.stack((self.residual(x), self._ones)))
-
     @functools.cached_property
-    def _ones(self) -> NDArray[np.float64]:
-        return np.ones(self.rows)
+    def _offsets(self) -> dict[bytes, float]:
+        """The offset b at every x :meth:`projected` was evaluated at (a search's few dozen)."""
+        return {}
+
+    def _whitened_with_constant(
+        self, x: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """L⁻¹ e and L⁻¹ 1 (in closed form), each of shape (M,)."""
+        whitening = self._whitening(x)
+        return whitening.apply(self.residual(x)), whitening.constant()
 
     def whiten(self, x: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray:
         """L⁻¹ values with Σ = LLᵀ (Cholesky), shape (M,) or (k, M) as ``values``, in σ2.
 
-        Σ is tridiagonal Toeplitz, so its leading minors are D_k = (r1^(k+2) - r2^(k+2)) /
-        (r1 - r2), r1,2 the roots of r² - d r + o², and its pivots p_k = D_k / D_(k-1). With
-        z = L̃⁻¹e (Σ = L̃ diag(p) L̃ᵀ, L̃ unit lower bidiagonal) and w_k = D_(k-1) z_k / r1^k,
-        the recursion z_k = e_k - (o / p_(k-1)) z_(k-1) becomes the constant-coefficient,
-        stable w_k = D̃_(k-1) e_k - (o / r1) w_(k-1), D̃_k = D_k / r1^(k+1): one
-        :func:`scipy.signal.lfilter` instead of a banded Cholesky factorisation.
+        Σ is tridiagonal Toeplitz: one first-order recursive filter
+        (:class:`~.toeplitz.ToeplitzWhitening`) instead of a banded Cholesky factorisation.
         """
+        return self._whitening(x).apply(values)
+
+    def _whitening(self, x: NDArray[np.float64]) -> ToeplitzWhitening:
+        """The whitening L⁻¹ of Σ(x)."""
         diagonal, off_diagonal = self.covariance_bands(x)
         # d - 2|o| = φ + g² exactly: the discriminant without cancellation.
         root = math.sqrt((self.phi + (1.0 + x[2]) ** 2) * (diagonal - 2.0 * off_diagonal))
-        r1 = 0.5 * (diagonal + root)
-        if not (math.isfinite(r1) and r1 > 0.0):
-            raise EstimationError(f"ml-eiv: the noise covariance is singular (d = {diagonal})")
-        log_q = math.log1p(-root / r1)  # q = r2 / r1 in [0, 1)
-        # D̃_k for k = -1 .. M-1: (1 - q^(k+2)) / (1 - q).
-        minors = np.expm1(self._minor_index * log_q) / math.expm1(log_q)
-        previous, current = minors[:-1], minors[1:]
-        scaled = lfilter([1.0], [1.0, off_diagonal / r1], previous * values, axis=-1)
-        return np.asarray(scaled / np.sqrt(r1 * current * previous))
-
-    @functools.cached_property
-    def _minor_index(self) -> NDArray[np.float64]:
-        """The exponents k + 2 of the minors D̃_k, k = -1 .. M-1, shape (M + 1,)."""
-        return np.arange(1.0, self.rows + 2.0)
+        return ToeplitzWhitening.from_bands(diagonal, off_diagonal, root, self.rows)
 
     def criterion(self, x: NDArray[np.float64]) -> float:
         """J = (e - b)ᵀ Σ⁻¹ (e - b) + (w h)² at the best offset b, degrees C²."""
@@ -383,12 +393,13 @@ def _start(
     problem: _CrossRelation,
     tc1: NDArray[np.float64],
     tc2: NDArray[np.float64],
-    warm: tuple[float, float] | None = None,
+    warm: tuple[float, ...] | None = None,
 ) -> tuple[list[NDArray[np.float64]], str]:
     """Starting x (one or more) and where they came from.
 
-    ``warm``, else β-GTLS with the same φ, else the grid (:func:`_grid_starts`). Every start
-    assumes equal gains; a start outside the search range is not used.
+    ``warm`` (τ1, τ2 in s, and the gain g when it has three entries), else β-GTLS with the
+    same φ, else the grid (:func:`_grid_starts`). These starts assume equal gains; a start
+    outside the search range is not used.
     """
     low, high = problem.bounds()
 
@@ -396,7 +407,9 @@ def _start(
         return bool(np.all(np.isfinite(start) & (start > low) & (start < high)))
 
     if warm is not None:
-        start = np.append(np.log(np.asarray(warm, dtype=np.float64)), 0.0)
+        values = np.asarray(warm, dtype=np.float64)
+        gain = values[2] - 1.0 if values.size == 3 else 0.0
+        start = np.append(np.log(values[:2]), gain)
         if inside(start):
             return [start], "warm"
     try:
@@ -410,11 +423,23 @@ def _start(
 
 
 def _equilibrated_condition(jacobian: NDArray[np.float64]) -> float:
-    """2-norm condition number of the Jacobian with unit-norm columns (inf if a column is 0)."""
+    """2-norm condition number of a two-column Jacobian with unit-norm columns (inf if one is 0).
+
+    For unit columns u, v with cosine c the singular values are √(1 ± |c|), and
+    1 ± |c| = ‖u ± sign(c) v‖² / 2, so the condition is ‖u + sv‖ / ‖u - sv‖ (s = sign c):
+    the SVD's value, each norm taken directly, without the cancellation of 1 - |c| (a
+    condition of 1e7 leaves 1 - |c| at 2e-14), at the cost of two vector sums instead of an
+    SVD of the M × 2 matrix.
+    """
     norms = np.linalg.norm(jacobian, axis=0)
     if not np.all(norms > 0.0):
         return math.inf
-    return float(np.linalg.cond(jacobian / norms))
+    first, second = jacobian[:, 0] / norms[0], jacobian[:, 1] / norms[1]
+    sign = 1.0 if float(first @ second) >= 0.0 else -1.0
+    apart = float(np.linalg.norm(first - sign * second))
+    if apart == 0.0:
+        return math.inf
+    return float(np.linalg.norm(first + sign * second)) / apart
 
 
 def _gain_weight(tc2: NDArray[np.float64]) -> float:
@@ -431,10 +456,30 @@ def _gain_weight(tc2: NDArray[np.float64]) -> float:
     return max(sigma2, _PRIOR_NOISE_FLOOR * float(np.std(tc2))) / GAIN_PRIOR
 
 
-def _search(problem: _CrossRelation, initial: NDArray[np.float64]) -> OptimizeResult:
-    """Minimise the projected residual's squared norm from ``initial`` within the bounds."""
+def _search(
+    problem: _CrossRelation, initial: NDArray[np.float64], warm: bool = False
+) -> SearchResult:
+    """Minimise the projected residual's squared norm from ``initial`` within the bounds.
+
+    From a ``warm`` start (close to the minimum) a lean Levenberg–Marquardt search
+    (:func:`~.gauss_newton.levenberg_marquardt`, the same forward-difference Jacobian and
+    tolerances) goes first, at a fraction of ``least_squares``' own cost; the trust region
+    reflective search of ``least_squares`` runs when it does not converge inside the bounds,
+    and from every other start.
+    """
     low, high = problem.bounds()
-    return least_squares(
+    if warm:
+        quick = levenberg_marquardt(
+            problem.projected,
+            initial,
+            (low, high),
+            xtol=1e-12,
+            ftol=1e-12,
+            max_nfev=_MAX_EVALUATIONS,
+        )
+        if quick is not None:
+            return quick
+    found = least_squares(
         problem.projected,
         initial,
         jac="2-point",
@@ -442,6 +487,16 @@ def _search(problem: _CrossRelation, initial: NDArray[np.float64]) -> OptimizeRe
         xtol=1e-12,
         ftol=1e-12,
         max_nfev=_MAX_EVALUATIONS,
+    )
+    # A dense array: the "2-point" Jacobian without jac_sparsity (typed as a union).
+    jacobian = np.asarray(found.jac, dtype=np.float64)
+    return SearchResult(
+        found.x,
+        float(found.cost),
+        jacobian,
+        int(found.nfev),
+        bool(found.success),
+        str(found.message),
     )
 
 
@@ -585,7 +640,7 @@ def ml_eiv(
     dt: float,
     phi: float | None = None,
     *,
-    start: tuple[float, float] | None = None,
+    start: tuple[float, ...] | None = None,
 ) -> Estimate:
     """ML errors-in-variables estimate: minimise J = eᵀ Σ⁻¹ e + (w h)² over τ1, τ2, g, b.
 
@@ -599,9 +654,10 @@ def ml_eiv(
     phi : float, optional
         Noise variance ratio σ1²/σ2². ``None`` measures it from the data with
         :func:`phi_from_data`.
-    start : (float, float), optional
+    start : (float, float) or (float, float, float), optional
         Time constants τ1, τ2 (s) to start the search from, e.g. the previous window's (a warm
-        start); by default β-GTLS with the same φ, or a log-spaced grid when β-GTLS fails.
+        start), and the gain g (tc1's reading per degree of tc2's, 1 when left out); by
+        default β-GTLS with the same φ, or a log-spaced grid when β-GTLS fails.
 
     Returns
     -------
@@ -634,7 +690,7 @@ def ml_eiv(
     problem = _CrossRelation.from_signals(tc1, tc2, dt, phi, _gain_weight(tc2))
     starts, origin = _start(problem, tc1, tc2, start)
     fit = min(
-        (_search(problem, initial) for initial in starts),
+        (_search(problem, initial, warm=origin == "warm") for initial in starts),
         key=lambda found: (not found.success, found.cost),
     )
     low, high = problem.bounds()
@@ -642,8 +698,7 @@ def ml_eiv(
         raise EstimationError(f"ml-eiv: the search did not converge ({fit.message})")
     if np.any(np.minimum(fit.x - low, high - fit.x) < 1e-6):
         raise EstimationError(_edge_message(problem, fit.x))
-    # A dense array: the "2-point" Jacobian without jac_sparsity (typed as a union).
-    jacobian = np.asarray(fit.jac, dtype=np.float64)
+    jacobian = fit.jac
     condition = _equilibrated_condition(jacobian[:, :2])
     if not condition < MAX_CONDITION:
         raise NoExcitationError(

@@ -18,7 +18,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DataError, TcompError
-from ..estimators import PHI_METHODS, Estimate, beta_noise_covariance, estimate
+from ..estimators import (
+    PHI_METHODS,
+    Estimate,
+    beta_noise_covariance,
+    estimate,
+    warm_start,
+)
 from ..estimators.beta import estimate_beta_from_scatter
 from ..estimators.mleiv import phi_from_data
 from ..estimators.scatter import beta_scatter, solve_gtls
@@ -49,8 +55,8 @@ class WindowEstimator:
         self._period = period_s
         self._window = self._new_window()
         self._tracker = self._new_tracker()
-        #: τ1, τ2 of the last estimate, the warm start of the next ``ml-eiv`` search.
-        self._warm: tuple[float, float] | None = None
+        #: τ1, τ2 (and gain) of the last estimate, the warm start of the next ``ml-eiv`` search.
+        self._warm: tuple[float, ...] | None = None
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -204,10 +210,10 @@ class WindowEstimator:
         )
 
     def adopt(self, status: EstimateStatus) -> None:
-        """Take a job's status: its τ warm-starts the next ``ml-eiv`` search."""
+        """Take a job's status: its τ and gain warm-start the next ``ml-eiv`` search."""
         estimate = status.estimate
         if estimate is not None and estimate.method == "ml-eiv":
-            self._warm = (estimate.tau1, estimate.tau2)
+            self._warm = warm_start(estimate)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -231,8 +237,9 @@ class EstimationJob:
         Regression rows of the window.
     dt : float
         Sample period, s.
-    warm : (float, float) or None
-        Start of an ``ml-eiv`` search, s.
+    warm : tuple of float or None
+        Start of an ``ml-eiv`` search: τ1, τ2 (s) and the gain
+        (:func:`~tcomp_core.estimators.warm_start`).
     solved : Estimate or str or None
         The result of an O(1) path, or its error message; None: the batch estimator runs.
     same_problem : bool
@@ -247,7 +254,7 @@ class EstimationJob:
     scatter: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 3)))
     rows: int = 0
     dt: float = math.nan
-    warm: tuple[float, float] | None = None
+    warm: tuple[float, ...] | None = None
     solved: Estimate | str | None = None
     same_problem: bool = False
 

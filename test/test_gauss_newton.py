@@ -1,0 +1,53 @@
+"""The lean Levenberg–Marquardt search ends where least_squares does, or hands over to it."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from tcomp_core.estimators.gauss_newton import forward_jacobian, levenberg_marquardt
+
+
+def _exponentials(seed: int):
+    """Residual of y = a exp(-t / b) + c fitted to noisy data: x = (log a, log b, c)."""
+    rng = np.random.default_rng(seed)
+    time = np.linspace(0.0, 5.0, 400)
+    data = 3.0 * np.exp(-time / 1.3) + 0.4 + rng.normal(0.0, 0.05, time.size)
+
+    def residual(x):
+        return np.exp(x[0]) * np.exp(-time / np.exp(x[1])) + x[2] - data
+
+    return residual
+
+
+def test_ends_at_the_minimum_least_squares_finds():
+    bounds = (np.array([-5.0, -5.0, -2.0]), np.array([5.0, 5.0, 2.0]))
+    for seed in range(5):
+        residual = _exponentials(seed)
+        start = np.array([np.log(2.5), np.log(1.0), 0.3])
+        reference = least_squares(
+            residual, start, jac="2-point", bounds=bounds, xtol=1e-12, ftol=1e-12
+        )
+        found = levenberg_marquardt(residual, start, bounds, xtol=1e-12, ftol=1e-12)
+        assert found is not None and found.success
+        np.testing.assert_allclose(found.x, reference.x, rtol=1e-8, atol=1e-10)
+        assert abs(found.cost - reference.cost) <= 1e-10 * reference.cost
+        np.testing.assert_allclose(found.jac, reference.jac, rtol=1e-5, atol=1e-7)
+        assert found.nfev >= 1
+
+
+def test_a_minimum_on_the_edge_is_left_to_least_squares():
+    residual = _exponentials(0)
+    start = np.array([np.log(2.5), np.log(1.0), 0.0])
+    # The offset's bound below its best value (0.4): the minimum lies on the edge.
+    bounds = (np.array([-5.0, -5.0, -0.1]), np.array([5.0, 5.0, 0.1]))
+    assert levenberg_marquardt(residual, start, bounds, xtol=1e-12, ftol=1e-12) is None
+
+
+def test_the_forward_jacobian_steps_back_from_the_upper_bound():
+    def fun(x):
+        return np.array([x[0] ** 2, 3.0 * x[1]])
+
+    x = np.array([1.0, 2.0])
+    jacobian = forward_jacobian(fun, x, fun(x), np.array([1.0, 10.0]))
+    np.testing.assert_allclose(jacobian, [[2.0, 0.0], [0.0, 3.0]], rtol=1e-6, atol=1e-7)
