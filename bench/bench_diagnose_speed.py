@@ -17,8 +17,11 @@ any number in the diagnosis's JSON (``tcomp diagnose --json``) and the output mo
 
 Usage::
 
-    PYTHONPATH=. .venv/bin/python bench/bench_diagnose_speed.py --baseline main \\
+    PYTHONPATH=. .venv/bin/python bench/bench_diagnose_speed.py \\
         --draws 2003,2010 --bags bags/conduction_500hz --repeats 1
+
+``--baseline`` defaults to the commit where this branch left ``main``, so that the baseline
+is the code the branch changed, however ``main`` has moved since.
 """
 
 from __future__ import annotations
@@ -91,6 +94,17 @@ def child(source: str, out: str) -> None:
         "output_name": output.name(),
     }
     Path(out).write_text(json.dumps(document, default=float))
+
+
+def merge_base() -> str:
+    """The commit where this checkout's branch left ``main`` (main itself on main)."""
+    found = subprocess.run(
+        ["git", "-C", str(REPOSITORY), "merge-base", "HEAD", "main"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return found.stdout.strip()
 
 
 def unpack_baseline(reference: str, into: Path) -> Path:
@@ -173,7 +187,10 @@ def records(draws: list[int], bags: list[str], scratch: Path) -> list[tuple[str,
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--baseline", default="main", help="git commit or branch to compare with")
+    parser.add_argument(
+        "--baseline",
+        help="git commit or branch to compare with (default: where this branch left main)",
+    )
     parser.add_argument("--draws", default="2003,2010,2020,2030,2040", help="campaign draws")
     parser.add_argument(
         "--bags", default="bags/conduction_500hz,bags/radiation_500hz", help="bag paths"
@@ -185,18 +202,19 @@ def main() -> None:
     if args.child:
         child(*args.child)
         return
+    baseline = args.baseline or merge_base()
     draws = [int(text) for text in args.draws.split(",") if text]
     bags = [text for text in args.bags.split(",") if text]
     with tempfile.TemporaryDirectory() as directory:
         scratch = Path(directory)
-        codes = {"baseline": unpack_baseline(args.baseline, scratch), "current": REPOSITORY}
+        codes = {"baseline": unpack_baseline(baseline, scratch), "current": REPOSITORY}
         rows, everything = [], []
         header = (
             f"{'record':<24} {'samples':>7} {'base s':>8} {'now s':>8} {'wall x':>7} "
             f"{'base cpu':>8} {'now cpu':>8} {'cpu x':>6}  same verdict/effects/output, "
             "largest relative difference"
         )
-        print(f"baseline {args.baseline}; current {REPOSITORY}")
+        print(f"baseline {baseline}; current {REPOSITORY}")
         print(header)
         for label, source in records(draws, bags, scratch):
             runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
