@@ -189,9 +189,10 @@ class Evaluator:
         train = ~self.data.validation & self.scored_mask(model)
         shift, moved = 0.0, math.inf
         tolerance = SHIFT_TOLERANCE * float(np.std(measured))
+        simulate = simulated.simulator(readings[fast - 1], fast, self.context)
         for _ in range(MAX_FREE_RUN_PASSES):
             start = float(measured[0]) - shift
-            predicted = simulated.simulate(readings[fast - 1], fast, start, self.context)
+            predicted = simulate(start)
             if not train.any() or not moved > tolerance:
                 break
             previous, shift = shift, self._level_shift(model, measured[train] - predicted[train])

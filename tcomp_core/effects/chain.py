@@ -658,6 +658,13 @@ def _lag_loop(
             loss = r * (kelvin**4 - wall4) if r else 0.0
             y = pole * y + (1.0 - pole) * (u - loss)
             append(y)
+    elif r and a.size and bool(np.all(a == a[0])):  # a constant τ: its pole once
+        pole = float(a[0])
+        rest = 1.0 - pole
+        for u in drive.tolist():
+            kelvin = y + offset
+            y = pole * y + rest * (u - r * (kelvin**4 - wall4))
+            append(y)
     elif r:
         for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
             kelvin = y + offset

@@ -570,9 +570,20 @@ class Model:
         ndarray, shape (N,)
             The other sensor's simulated readings, degrees C.
         """
+        return self.simulator(reading, source, context)(initial_reading)
+
+    def simulator(
+        self, reading: NDArray[np.float64], source: int, context: FitContext
+    ) -> Callable[[float], NDArray[np.float64]]:
+        """:meth:`simulate` as a function of the initial reading (the gas computed once).
+
+        A free run that restarts from several initial readings (:mod:`tcomp_core.diagnose.
+        heldout`) inverts the source sensor's chain once.
+        """
         chains = self.chains(context)
         gas, _ = gas_from_reading(chains[source - 1], reading, context.dt)
-        return reading_from_gas(chains[2 - source], gas, context.dt, initial_reading)
+        other = chains[2 - source]
+        return lambda initial_reading: reading_from_gas(other, gas, context.dt, initial_reading)
 
     # -- fitting ----------------------------------------------------------------------------
 
