@@ -11,9 +11,11 @@ to the next, so that both see the same load on a busy machine.
 
 It prints, per record, the median wall and CPU seconds of each code, their ratios (baseline /
 current: above 1 the current code is faster) and whether the two found the same: the verdict,
-the final effects and the output model's name equal, and the largest relative difference of
-any number in the diagnosis's JSON (``tcomp diagnose --json``) and the output model's summary.
-``identical`` means every number and every string of both documents is the same.
+the final effects and the output model's name (its applied pieces) equal; whether the current
+code's τ1, τ2 (the base model's and the final model's) lie in the baseline fits' own 95 %
+intervals; and the largest relative difference of any number in the diagnosis's JSON
+(``tcomp diagnose --json``) and the output model's summary. ``identical`` means every number
+and every string of both documents is the same.
 
 Usage::
 
@@ -165,6 +167,32 @@ def differences(left: Any, right: Any, path: str = "") -> tuple[float, list[str]
     return (0.0, []) if left == right else (math.inf, [f"{path}: {left!r} / {right!r}"])
 
 
+def taus_inside(old: dict[str, Any], new: dict[str, Any]) -> bool:
+    """Whether the new diagnosis's τ1, τ2 (base model and final) lie in the old's 95 % intervals.
+
+    A τ without an interval (the fit's covariance singular) counts as inside only when equal.
+    """
+    for step in ("base", "final"):
+        for name in ("tau1", "tau2"):
+            value = new[step][name]
+            low, high = old[step].get("intervals_95", {}).get(name, (None, None))
+            if low is None or high is None:
+                if value != old[step][name]:
+                    return False
+            elif not low <= value <= high:
+                return False
+    return True
+
+
+def draw_indices(text: str) -> list[int]:
+    """Draws from ``"2003,2010"`` or ranges ``"5000-5019"``."""
+    indices: list[int] = []
+    for part in filter(None, text.split(",")):
+        first, _, last = part.partition("-")
+        indices += range(int(first), int(last or first) + 1)
+    return indices
+
+
 def records(draws: list[int], bags: list[str], scratch: Path) -> list[tuple[str, str]]:
     """(label, source) of every record: draws saved as ``.npz``, bags as their paths."""
     found = []
@@ -191,7 +219,11 @@ def main() -> None:
         "--baseline",
         help="git commit or branch to compare with (default: where this branch left main)",
     )
-    parser.add_argument("--draws", default="2003,2010,2020,2030,2040", help="campaign draws")
+    parser.add_argument(
+        "--draws",
+        default="2003,2010,2020,2030,2040",
+        help="campaign draws (2003,2010 or 5000-5019)",
+    )
     parser.add_argument(
         "--bags", default="bags/conduction_500hz,bags/radiation_500hz", help="bag paths"
     )
@@ -203,7 +235,7 @@ def main() -> None:
         child(*args.child)
         return
     baseline = args.baseline or merge_base()
-    draws = [int(text) for text in args.draws.split(",") if text]
+    draws = draw_indices(args.draws)
     bags = [text for text in args.bags.split(",") if text]
     with tempfile.TemporaryDirectory() as directory:
         scratch = Path(directory)
@@ -212,7 +244,7 @@ def main() -> None:
         header = (
             f"{'record':<24} {'samples':>7} {'base s':>8} {'now s':>8} {'wall x':>7} "
             f"{'base cpu':>8} {'now cpu':>8} {'cpu x':>6}  same verdict/effects/output, "
-            "largest relative difference"
+            "tau in the baseline's 95 % intervals, largest relative difference"
         )
         print(f"baseline {baseline}; current {REPOSITORY}")
         print(header)
@@ -241,11 +273,13 @@ def main() -> None:
             }
             (base_wall, base_cpu), (now_wall, now_cpu) = times["baseline"], times["current"]
             verdicts = f"{old['diagnosis']['verdict']}/{new['diagnosis']['verdict']}"
+            outputs = f"{old['output_name']}/{new['output_name']}"
+            inside = taus_inside(old["diagnosis"], new["diagnosis"])
             print(
                 f"{label:<24} {new['samples']:>7} {base_wall:>8.2f} {now_wall:>8.2f} "
                 f"{base_wall / now_wall:>6.2f}x {base_cpu:>8.2f} {now_cpu:>8.2f} "
                 f"{base_cpu / now_cpu:>5.2f}x  {'yes' if same else 'NO'} ({verdicts}, "
-                f"{old['output_name']}), "
+                f"{outputs}), tau {'inside' if inside else 'OUTSIDE'}, "
                 + ("identical" if not unequal else f"{largest:.2g} in {len(unequal)} values"),
                 flush=True,
             )
@@ -253,7 +287,14 @@ def main() -> None:
                 print(f"    {line}")
             rows.append((base_wall, now_wall, base_cpu, now_cpu))
             everything.append(
-                {"record": label, "runs": runs, "largest": largest, "unequal": unequal}
+                {
+                    "record": label,
+                    "runs": runs,
+                    "same": same,
+                    "taus_inside": inside,
+                    "largest": largest,
+                    "unequal": unequal,
+                }
             )
         if rows:
             totals = [sum(column) for column in zip(*rows, strict=True)]
