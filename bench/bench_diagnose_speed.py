@@ -49,7 +49,9 @@ def child(source: str, out: str) -> None:
     """Diagnose one record as ``fit_output_model`` does; write timings and results to ``out``.
 
     Runs with whichever ``tcomp_core`` is first on ``PYTHONPATH``, so it uses only what the
-    baseline has too.
+    baseline has too. A refusal is a result: a diagnosis that raises is recorded as its
+    message (verdict ``error``), an output model refused (no gas compensated) as
+    ``refused`` with its message.
     """
     import numpy as np
 
@@ -60,6 +62,7 @@ def child(source: str, out: str) -> None:
     )
     from tcomp_core.diagnose import diagnose
     from tcomp_core.diagnose.result import diagnosis_to_dict
+    from tcomp_core.errors import TcompError
     from tcomp_core.io import Record, read_record
 
     if source.endswith(".npz"):
@@ -78,22 +81,34 @@ def child(source: str, out: str) -> None:
     plain = default_estimate(record)
     taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
     lines = () if plain is None else plain.lines
-    diagnosis = diagnose(record, published_taus=taus, published_lines=lines)
-    output = output_model_from_diagnosis(
-        diagnosis,
-        origin_s=float(record.time[0]),
-        first_order_taus=taus,
-        first_order_lines=lines,
-        first_order_failure=default_first_order_failure(record, plain),
-    )
+    found: dict[str, Any]
+    try:
+        diagnosis = diagnose(record, published_taus=taus, published_lines=lines)
+    except TcompError as exc:
+        found = {"verdict": "error", "error": str(exc), "final": {"effects": []}}
+        summary, name = {}, "error"
+    else:
+        found = diagnosis_to_dict(diagnosis)
+        try:
+            output = output_model_from_diagnosis(
+                diagnosis,
+                origin_s=float(record.time[0]),
+                first_order_taus=taus,
+                first_order_lines=lines,
+                first_order_failure=default_first_order_failure(record, plain),
+            )
+        except TcompError as exc:
+            summary, name = {"refused": str(exc)}, "refused"
+        else:
+            summary, name = output.summary(), output.name()
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     document = {
         "seconds": wall,
         "cpu_seconds": cpu,
         "samples": int(record.tc1.size),
-        "diagnosis": diagnosis_to_dict(diagnosis),
-        "output": output.summary(),
-        "output_name": output.name(),
+        "diagnosis": found,
+        "output": summary,
+        "output_name": name,
     }
     Path(out).write_text(json.dumps(document, default=float))
 
@@ -172,6 +187,8 @@ def taus_inside(old: dict[str, Any], new: dict[str, Any]) -> bool:
 
     A τ without an interval (the fit's covariance singular) counts as inside only when equal.
     """
+    if "error" in old or "error" in new:
+        return old.get("error") == new.get("error")
     for step in ("base", "final"):
         for name in ("tau1", "tau2"):
             value = new[step][name]
