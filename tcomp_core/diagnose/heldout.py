@@ -32,6 +32,7 @@ from ..effects import FitContext, Model
 from ..effects.base import OutputEvidence
 from ..effects.chain import SHIFT_HALF_TAPS
 from ..lines import ForeignLine
+from ..sections import zero_phase
 from ..tolerance import class2_level_tolerance_c
 from .identification import held_edges, identify
 from .prepare import PreparedData
@@ -147,8 +148,8 @@ class Evaluator:
         return float(trapezoid(power, omega) / math.pi) + in_band
 
     def lowpass(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The comparison low-pass (zero phase)."""
-        return signal.sosfiltfilt(self._sos, values)
+        """The comparison low-pass (zero phase; ``sosfiltfilt``'s result, its state cached)."""
+        return zero_phase(self._sos, values)
 
     @property
     def readings(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -189,9 +190,10 @@ class Evaluator:
         train = ~self.data.validation & self.scored_mask(model)
         shift, moved = 0.0, math.inf
         tolerance = SHIFT_TOLERANCE * float(np.std(measured))
+        simulate = simulated.simulator(readings[fast - 1], fast, self.context)
         for _ in range(MAX_FREE_RUN_PASSES):
             start = float(measured[0]) - shift
-            predicted = simulated.simulate(readings[fast - 1], fast, start, self.context)
+            predicted = simulate(start)
             if not train.any() or not moved > tolerance:
                 break
             previous, shift = shift, self._level_shift(model, measured[train] - predicted[train])

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
+from ..sections import sosfilt_from, zero_phase
 from .base import KELVIN
 from .conduction import fin_filter
 
@@ -116,11 +117,35 @@ class SensorChain:
             return None
         return _fin_filters(self.tau, self.fin_ml, self.tau_p, dt)
 
+    def support_forward(self, dt: float) -> CascadeFilter | None:
+        """The fin filter M alone (what a simulated reading needs), or None."""
+        if not math.isfinite(self.fin_ml):
+            return None
+        return _fin_forward(self.tau, self.fin_ml, self.tau_p, dt)
+
+    def support_inverse(self, dt: float) -> CascadeFilter | None:
+        """The fin filter's inverse M⁻¹ alone (what the gas needs), or None."""
+        if not math.isfinite(self.fin_ml):
+            return None
+        return _fin_inverse(self.tau, self.fin_ml, self.tau_p, dt)
+
     def support_transient(self, n: int, dt: float) -> NDArray[np.float64] | None:
         """The supports' initial excess on the reading, shape (n,), degrees C, or None."""
         if not math.isfinite(self.fin_ml) or self.mode0 == 0.0:
             return None
-        return self.mode0 * np.exp(-(dt / self.tau_p) * np.arange(n))
+        return self.mode0 * _decay(n, dt, self.tau_p)
+
+
+@functools.lru_cache(maxsize=4)
+def _decay(n: int, dt: float, tau_p: float) -> NDArray[np.float64]:
+    """e^(−k dt/τp) for k = 0 .. n − 1, shape (n,).
+
+    Cached (read-only): a fit's Jacobian moves mode0 at a few τp; a few records' worth of
+    memory at most.
+    """
+    decay = np.exp(-(dt / tau_p) * np.arange(n))
+    decay.flags.writeable = False
+    return decay
 
 
 @dataclass(frozen=True)
@@ -142,38 +167,69 @@ class CascadeFilter:
         cls, zeros: NDArray[np.complex128], poles: NDArray[np.complex128], dt: float
     ) -> CascadeFilter:
         k = 2.0 / dt
-        numerators = _quadratics((k + zeros) / (k - zeros))
-        denominators = _quadratics((k + poles) / (k - poles))
-        sos = np.hstack((numerators, denominators))
-        sos[0, :3] /= np.prod(sos[:, :3].sum(axis=1) / sos[:, 3:].sum(axis=1))  # unity DC gain
-        return cls(sos=sos)
+        return cls.from_quadratics(
+            _quadratics((k + zeros) / (k - zeros)), _quadratics((k + poles) / (k - poles))
+        )
+
+    @classmethod
+    def from_quadratics(
+        cls, numerators: NDArray[np.float64], denominators: NDArray[np.float64]
+    ) -> CascadeFilter:
+        """The sections of matched numerator and denominator quadratics (shape (S, 3) each).
+
+        Scaled to unity gain at DC, in Python floats: the sums and the product in numpy's
+        order, so the sections are those of the array expressions to the bit.
+        """
+        rows = [
+            [*top, *bottom]
+            for top, bottom in zip(
+                np.asarray(numerators).tolist(), np.asarray(denominators).tolist(), strict=True
+            )
+        ]
+        gain = 1.0  # Π (b0 + b1 + b2)/(1 + a1 + a2), the cascade's gain at DC
+        for row in rows:
+            gain *= (row[0] + row[1] + row[2]) / (row[3] + row[4] + row[5])
+        rows[0][:3] = [value / gain for value in rows[0][:3]]
+        return cls(sos=np.array(rows))
+
+    @functools.cached_property
+    def _rows(self) -> tuple[tuple[float, ...], ...]:
+        """The sections as Python floats (the steady state is a short scalar loop)."""
+        return tuple(tuple(row) for row in self.sos.tolist())
 
     def steady_state(self, value: float) -> NDArray[np.float64]:
         """The sections' state (``sosfilt``'s ``zi``, shape (S, 2)) at rest at ``value``."""
         # Steady state of each direct-form-II-transposed section for a constant input x:
         # y = x (b0 + b1 + b2)/(1 + a1 + a2), z1 = y − b0 x, z2 = b2 x − a2 y.
-        b0, b1, b2, _, a1, a2 = self.sos.T
-        zi = np.empty((self.sos.shape[0], 2))
-        x = value
-        for i in range(self.sos.shape[0]):
-            y = x * (b0[i] + b1[i] + b2[i]) / (1.0 + a1[i] + a2[i])
-            zi[i] = (y - b0[i] * x, b2[i] * x - a2[i] * y)
+        zi = []
+        x = float(value)
+        for b0, b1, b2, _, a1, a2 in self._rows:
+            y = x * (b0 + b1 + b2) / (1.0 + a1 + a2)
+            zi.append((y - b0 * x, b2 * x - a2 * y))
             x = y
-        return zi
+        return np.array(zi)
 
     def __call__(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
-        return signal.sosfilt(self.sos, values, zi=self.steady_state(values[0]))[0]
+        return sosfilt_from(self.sos, values, self.steady_state(values[0]))
 
 
 def _quadratics(roots: NDArray[np.complex128]) -> NDArray[np.float64]:
     """Monic quadratics [1, c1, c2] whose roots are ``roots`` (an even count; pairs conjugate).
 
-    Ordered by the size of their largest root, descending (the slow ones first).
+    Ordered by the size of their largest root, descending (the slow ones first). In Python
+    complex numbers: a handful of roots, designed for every parameter a fit moves.
     """
-    tolerance = 1e-9 * max(1.0, float(np.max(np.abs(roots))))
-    upper = roots[roots.imag > tolerance]
-    real = np.sort(roots.real[np.abs(roots.imag) <= tolerance])[::-1]
-    quads = [(abs(r), 1.0, -2.0 * r.real, abs(r) ** 2) for r in upper]
+    values = roots.tolist()
+    moduli = [abs(root) for root in values]
+    if any(math.isnan(modulus) for modulus in moduli):
+        raise ValueError("the roots of a filter section are not numbers")
+    tolerance = 1e-9 * max(1.0, *moduli)
+    quads = [
+        (modulus, 1.0, -2.0 * root.real, modulus**2)
+        for root, modulus in zip(values, moduli, strict=True)
+        if root.imag > tolerance
+    ]
+    real = sorted((root.real for root in values if abs(root.imag) <= tolerance), reverse=True)
     quads += [
         (max(abs(p), abs(q)), 1.0, -(p + q), p * q)
         for p, q in zip(real[::2], real[1::2], strict=True)
@@ -182,16 +238,39 @@ def _quadratics(roots: NDArray[np.complex128]) -> NDArray[np.float64]:
     return np.array([quad[1:] for quad in quads])
 
 
-@functools.lru_cache(maxsize=256)
 def _fin_filters(
     tau: float, fin_ml: float, tau_p: float, dt: float
 ) -> tuple[CascadeFilter, CascadeFilter]:
-    """M and M⁻¹ in discrete time (cached: a fit asks for the same ones often)."""
+    """M and M⁻¹ in discrete time."""
+    return _fin_forward(tau, fin_ml, tau_p, dt), _fin_inverse(tau, fin_ml, tau_p, dt)
+
+
+@functools.lru_cache(maxsize=256)
+def _fin_quadratics(
+    tau: float, fin_ml: float, tau_p: float, dt: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The zero and the pole quadratics of M in discrete time (M⁻¹ swaps them).
+
+    Cached, as are the filters: a fit asks for the same ones often, and a fit needs only M⁻¹
+    (the free-run simulation M).
+    """
     zeros, poles = fin_filter(tau, fin_ml, tau_p)
-    return (
-        CascadeFilter.from_zeros_poles(zeros, poles, dt),
-        CascadeFilter.from_zeros_poles(poles, zeros, dt),
-    )
+    k = 2.0 / dt
+    return _quadratics((k + zeros) / (k - zeros)), _quadratics((k + poles) / (k - poles))
+
+
+@functools.lru_cache(maxsize=256)
+def _fin_forward(tau: float, fin_ml: float, tau_p: float, dt: float) -> CascadeFilter:
+    """M in discrete time (:meth:`CascadeFilter.from_zeros_poles` of its zeros and poles)."""
+    zeros, poles = _fin_quadratics(tau, fin_ml, tau_p, dt)
+    return CascadeFilter.from_quadratics(zeros, poles)
+
+
+@functools.lru_cache(maxsize=256)
+def _fin_inverse(tau: float, fin_ml: float, tau_p: float, dt: float) -> CascadeFilter:
+    """M⁻¹ in discrete time (the zeros and poles of M swapped)."""
+    zeros, poles = _fin_quadratics(tau, fin_ml, tau_p, dt)
+    return CascadeFilter.from_quadratics(poles, zeros)
 
 
 #: Half length of the fractional-delay interpolator (taps: 2 × this).
@@ -218,6 +297,14 @@ def shift_weights(fraction: float) -> NDArray[np.float64]:
     return weights / weights.sum()
 
 
+@functools.lru_cache(maxsize=64)
+def _shared_shift_weights(fraction: float) -> NDArray[np.float64]:
+    """:func:`shift_weights`, cached and read-only: a fit asks for one delay in many columns."""
+    weights = shift_weights(fraction)
+    weights.flags.writeable = False
+    return weights
+
+
 def fractional_shift(values: NDArray[np.float64], shift: float) -> tuple[NDArray, NDArray]:
     """Evaluate a sampled series at index ``k + shift`` (band-limited interpolation).
 
@@ -235,7 +322,7 @@ def fractional_shift(values: NDArray[np.float64], shift: float) -> tuple[NDArray
         The interpolation weights.
     """
     whole = math.floor(shift)
-    weights = shift_weights(shift - whole)
+    weights = _shared_shift_weights(shift - whole)
     m = values.size
     shifted = np.full(m, np.nan)
     # Output k uses values[k + whole + j] for j = -SHIFT_HALF_TAPS + 1 .. SHIFT_HALF_TAPS.
@@ -265,6 +352,7 @@ def gas_from_reading(
     reading: NDArray[np.float64],
     dt: float,
     noise_kernel: NDArray[np.float64] | None = None,
+    aligned: Aligned | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Gas temperature on the common time base from one sensor's readings.
 
@@ -277,6 +365,9 @@ def gas_from_reading(
         Sample interval, s.
     noise_kernel : ndarray, optional
         Impulse response of a low-pass the readings went through (their white noise with it).
+    aligned : Aligned, optional
+        :func:`aligned_reading` of these readings and of a chain with the same line and delay,
+        when the caller has it (a fit moving other parameters); computed otherwise.
 
     Returns
     -------
@@ -286,7 +377,19 @@ def gas_from_reading(
     noise_gain : ndarray, shape (N - 1,)
         Variance of ``gas`` per unit variance of white noise on the readings.
     """
-    lagged, weights, edges = _lagged_temperature(chain, reading, dt)
+    gas, noise_gain = gas_and_noise_gain(chain, reading, dt, noise_kernel, aligned)
+    return gas, np.broadcast_to(noise_gain, gas.shape)
+
+
+def gas_and_noise_gain(
+    chain: SensorChain,
+    reading: NDArray[np.float64],
+    dt: float,
+    noise_kernel: NDArray[np.float64] | None = None,
+    aligned: Aligned | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
+    """:func:`gas_from_reading` with the noise gain a scalar where it is one (constant τ)."""
+    lagged, weights, edges = _lagged_temperature(chain, reading, dt, aligned)
     gas, a, tap = _lag_inverse(chain, lagged, dt)
     if edges is not None:
         gas[edges[1:] | edges[:-1]] = np.nan
@@ -294,26 +397,50 @@ def gas_from_reading(
     # slope (M⁻¹ of conduction is 1 at high frequency, where the noise is); an interpolator
     # with weights w (and a low-pass before it) turns the taps into w ⊛ (-c, 1), whose energy
     # is (1 + c²) Σw² - 2c Σ w_j w_(j+1).
-    if noise_kernel is not None:
-        weights = np.convolve(weights, noise_kernel)
-    energy = (1.0 + tap**2) * np.sum(weights**2) - 2.0 * tap * np.sum(weights[:-1] * weights[1:])
-    noise_gain = energy / (chain.gain * (1.0 - a)) ** 2
-    return gas, np.broadcast_to(noise_gain, gas.shape)
+    squares, products = _weight_energy(weights, noise_kernel)
+    energy = (1.0 + tap**2) * squares - 2.0 * tap * products
+    return gas, energy / (chain.gain * (1.0 - a)) ** 2
+
+
+def _weight_energy(
+    weights: NDArray[np.float64], noise_kernel: NDArray[np.float64] | None
+) -> tuple[float, float]:
+    """Σ w_j² and Σ w_j w_(j+1) of the interpolator's weights after the low-pass's kernel."""
+    key = (weights.tobytes(), id(noise_kernel))
+    found = _ENERGIES.get(key)
+    if found is None or found[0] is not noise_kernel:
+        kernel = noise_kernel
+        if kernel is not None:
+            weights = np.convolve(weights, kernel)
+        found = (kernel, (np.sum(weights**2), np.sum(weights[:-1] * weights[1:])))
+        if len(_ENERGIES) >= 64:
+            _ENERGIES.clear()
+        _ENERGIES[key] = found
+    return found[1]
+
+
+#: :func:`_weight_energy` by the weights' bytes and the kernel's identity (each entry holds
+#: its kernel, so that identity is not another array's while it is kept): a fit asks for a
+#: few, many times.
+_ENERGIES: dict[tuple[bytes, int], tuple[NDArray[np.float64] | None, tuple[float, float]]] = {}
 
 
 def _lag_inverse(
     chain: SensorChain, lagged: NDArray[np.float64], dt: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float, NDArray[np.float64] | float]:
     """Gas from the lag's output (shape (N,) -> (N - 1,)), the poles used and the noise tap."""
-    junction_k = lagged[:-1] + KELVIN
+    # The junction's temperature in kelvin: for a radiative loss or a level-dependent τ only.
+    junction_k = lagged[:-1] + KELVIN if chain.r or chain.level_exponent else None
     # A constant pole stays a scalar: the arithmetic below and the noise gain are then cheap.
     a: NDArray[np.float64] | float = (
-        replace(chain, level_exponent=0.0).poles(lagged.size, dt)
+        np.exp(-dt / (chain.tau * chain.factor[:-1]))  # the poles without the level's factor
         if chain.factor is not None
         else math.exp(-dt / chain.tau)
     )
     gas, tap = _invert_lag(chain, lagged, a, junction_k)
-    for _ in range(LEVEL_ITERATIONS if chain.level_exponent else 0):
+    if not (chain.level_exponent and junction_k is not None):
+        return gas, a, tap
+    for _ in range(LEVEL_ITERATIONS):
         # τ follows the film temperature, halfway between the junction and the gas: the
         # implicit inverse by fixed-point steps from the constant-τ gas.
         a = chain.poles(lagged.size, dt, 0.5 * (junction_k + _film_gas(chain, gas) + KELVIN))
@@ -321,15 +448,28 @@ def _lag_inverse(
     return gas, a, tap
 
 
-def _lagged_temperature(
-    chain: SensorChain, reading: NDArray[np.float64], dt: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_] | None]:
-    """The first-order lag's output from the readings: every stage after the lag undone.
+#: The readings with a line taken off and a delay undone (:func:`aligned_reading`).
+Aligned = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_] | None]
+#: The interpolation weights of no delay.
+_NO_SHIFT = np.array([1.0])
+_NO_SHIFT.flags.writeable = False
 
-    Returns the lagged temperature (shape (N,), degrees C), the delay interpolator's weights
-    and where the delay's stencil left the record (None without a delay).
+
+def aligned_reading(chain: SensorChain, reading: NDArray[np.float64], dt: float) -> Aligned:
+    """The readings with ``chain``'s line (``additive``) taken off and its delay undone.
+
+    Depends on ``chain.additive`` and ``chain.delay_s`` only.
+
+    Returns
+    -------
+    reading : ndarray, shape (N,)
+        Degrees C; the ends a delay shifts out of the record hold the nearest value.
+    weights : ndarray
+        The delay interpolator's weights (``[1.0]`` without a delay; read-only).
+    edges : ndarray of bool, shape (N,), or None
+        Where the interpolator's stencil left the record (None without a delay).
     """
-    weights = np.array([1.0])
+    weights = _NO_SHIFT
     edges = None
     if chain.additive is not None:
         reading = reading - chain.additive
@@ -339,12 +479,28 @@ def _lagged_temperature(
         reading, weights = fractional_shift(reading, chain.delay_s / dt)
         edges = ~np.isfinite(reading)
         reading = _fill_edges(reading)
+    return reading, weights, edges
+
+
+def _lagged_temperature(
+    chain: SensorChain,
+    reading: NDArray[np.float64],
+    dt: float,
+    aligned: Aligned | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_] | None]:
+    """The first-order lag's output from the readings: every stage after the lag undone.
+
+    Returns the lagged temperature (shape (N,), degrees C), the delay interpolator's weights
+    and where the delay's stencil left the record (None without a delay). ``aligned`` is
+    :func:`aligned_reading`'s result when the caller has it.
+    """
+    reading, weights, edges = aligned_reading(chain, reading, dt) if aligned is None else aligned
     true = (reading - chain.offset) / chain.gain
     transient = chain.support_transient(true.size, dt)
     if transient is not None:
         true = true - transient
-    sections = chain.support_filters(dt)
-    return (true if sections is None else sections[1](true)), weights, edges
+    inverse = chain.support_inverse(dt)
+    return (true if inverse is None else inverse(true)), weights, edges
 
 
 def first_order_reading(
@@ -387,7 +543,7 @@ def _film_gas(chain: SensorChain, gas: NDArray[np.float64]) -> NDArray[np.float6
     """The gas temperature that sets the film temperature: low-passed when the chain says so."""
     if chain.film_sos is None or gas.size <= 3 * 2 * chain.film_sos.shape[0] + 1:
         return gas
-    return signal.sosfiltfilt(chain.film_sos, gas)
+    return zero_phase(chain.film_sos, gas)
 
 
 #: Fixed-point steps of the inverse with a level-dependent τ: each gains the factor p Δτ/τ
@@ -399,12 +555,15 @@ def _invert_lag(
     chain: SensorChain,
     lagged: NDArray[np.float64],
     a: NDArray[np.float64] | float,
-    junction_k: NDArray[np.float64],
+    junction_k: NDArray[np.float64] | None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
-    """Gas held over each interval from the lagged temperature, and the noise tap c."""
+    """Gas held over each interval from the lagged temperature, and the noise tap c.
+
+    ``junction_k`` (the lagged temperature in K, shape (N - 1,)) is needed with radiation.
+    """
     gas = (lagged[1:] - a * lagged[:-1]) / (1.0 - a)
     tap = a  # the weight of -n[k] in u[k], relative to that of n[k+1]
-    if chain.r:
+    if chain.r and junction_k is not None:
         cube = junction_k * junction_k * junction_k  # products: ** 3 and ** 4 go through pow
         gas = gas + chain.r * (cube * junction_k - chain.wall_k**4)
         tap = a - (4.0 * chain.r * (1.0 - a)) * cube
@@ -452,8 +611,8 @@ def reading_from_gas(
     else:
         a_k = chain.poles(n, dt)
         lagged = _lag_loop(seen, a_k, start, chain.r, chain.wall_k**4)
-    sections = chain.support_filters(dt)
-    true = lagged if sections is None else sections[0](lagged)
+    forward = chain.support_forward(dt)
+    true = lagged if forward is None else forward(lagged)
     if transient is not None:
         true = true + transient
     reading = chain.gain * true + chain.offset
@@ -479,16 +638,40 @@ def _lag_loop(
     y[k] + K and the gas film_drive[k] + K (τ varying with the level), ``a`` then holding the
     poles without that factor.
     """
+    # One loop per case, its constants in locals: the recurrence runs once per sample in
+    # Python, for every free-run simulation of a radiating or level-dependent sensor.
     out = [start]
+    append = out.append
     y = start
-    films = (drive if level is None else level[2]).tolist()
-    for u, pole, film_u in zip(drive.tolist(), a.tolist(), films, strict=True):
-        kelvin = y + KELVIN
-        if level is not None:  # τ at the film temperature, halfway to the gas
-            film = 0.5 * (kelvin + film_u) + 0.5 * KELVIN
-            ratio = min(max(film / level[1], 0.5), 2.0)  # as in SensorChain.poles
-            pole = pole ** (1.0 / ratio ** level[0])
-        loss = r * (kelvin**4 - wall4) if r else 0.0
-        y = pole * y + (1.0 - pole) * (u - loss)
-        out.append(y)
+    offset = KELVIN
+    if level is not None:  # τ at the film temperature, halfway to the gas
+        exponent, reference = level[0], level[1]
+        half_offset = 0.5 * KELVIN
+        for u, pole, film_u in zip(drive.tolist(), a.tolist(), level[2].tolist(), strict=True):
+            kelvin = y + offset
+            film = 0.5 * (kelvin + film_u) + half_offset
+            # min(max(film / reference, 0.5), 2.0), as in SensorChain.poles (NaN kept)
+            ratio = film / reference
+            ratio = 0.5 if ratio < 0.5 else ratio
+            ratio = 2.0 if ratio > 2.0 else ratio
+            pole = pole ** (1.0 / ratio**exponent)
+            loss = r * (kelvin**4 - wall4) if r else 0.0
+            y = pole * y + (1.0 - pole) * (u - loss)
+            append(y)
+    elif r and a.size and bool(np.all(a == a[0])):  # a constant τ: its pole once
+        pole = float(a[0])
+        rest = 1.0 - pole
+        for u in drive.tolist():
+            kelvin = y + offset
+            y = pole * y + rest * (u - r * (kelvin**4 - wall4))
+            append(y)
+    elif r:
+        for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
+            kelvin = y + offset
+            y = pole * y + (1.0 - pole) * (u - r * (kelvin**4 - wall4))
+            append(y)
+    else:
+        for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
+            y = pole * y + (1.0 - pole) * u  # u − 0.0 is u
+            append(y)
     return np.asarray(out)

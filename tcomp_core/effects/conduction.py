@@ -127,23 +127,51 @@ def fin_filter(
     -------
     zeros, poles : ndarray of complex, shape (terms + 2,) each, 1/s
     """
-    n = np.arange(1, terms + 1)
-    a = 4.0 * fin_ml**2 / ((2 * n - 1) ** 2 * math.pi**2)
-    tau_n = tau * a / (1.0 + a)
+    # A fit designs this filter for every parameter it moves: a few numbers each, in Python
+    # floats (numpy's calls cost more than their arithmetic here; the operations and their
+    # order are those of the array expressions, so the results are the same to the bit).
+    square = 4.0 * fin_ml**2
+    tau_n = [tau * a / (1.0 + a) for a in (square / scale for scale in _fin_scales(terms))]
     # Σ over all n of τ a_n/(1 + a_n) is τ (mL/2) tanh(mL) (the first moment of sech(mL√(1+τs)));
     # the factors beyond ``terms`` make one lag of the rest.
-    tail = max(tau * 0.5 * fin_ml * math.tanh(fin_ml) - float(tau_n.sum()), 1e-12 * tau)
-    lags = np.array([tau_p, *tau_n, tail])
-    numerator = np.array([1.0])
+    tail = max(tau * 0.5 * fin_ml * math.tanh(fin_ml) - sum(tau_n), 1e-12 * tau)
+    lags = [tau_p, *tau_n, tail]
+    coefficients = [1.0]
     for lag in lags:  # D(s) = Π(lag s + 1), highest power first
-        numerator = np.convolve(numerator, [lag, 1.0])
-    numerator[-2] -= (tau_p - tau) * fin_sech(fin_ml)  # D − N
-    zeros = np.roots(numerator).astype(np.complex128)
+        coefficients = [
+            coefficients[0] * lag,
+            *(coefficients[k] * lag + coefficients[k - 1] for k in range(1, len(coefficients))),
+            coefficients[-1],
+        ]
+    coefficients[-2] -= (tau_p - tau) * fin_sech(fin_ml)  # D − N
+    zeros = _roots(coefficients).astype(np.complex128)
     # With τp < τ/2 (supports faster than the wire: no physical rig, but a search can pass
     # there) M is not minimum phase; zeros reflected into the left half plane keep |M| and a
     # stable inverse.
     zeros = np.where(zeros.real > 0.0, -zeros.conj(), zeros)
-    return zeros, (-1.0 / lags).astype(np.complex128)
+    return zeros, np.array([-1.0 / lag for lag in lags], dtype=np.complex128)
+
+
+@functools.lru_cache(maxsize=8)
+def _fin_scales(terms: int) -> tuple[float, ...]:
+    """(2n − 1)² π² for n = 1 .. ``terms``: a_n = 4 (mL)² over these."""
+    n = np.arange(1, terms + 1)
+    return tuple(((2 * n - 1) ** 2 * math.pi**2).tolist())
+
+
+def _roots(coefficients: list[float]) -> NDArray[np.inexact]:
+    """``np.roots`` of a polynomial, highest power first.
+
+    The eigenvalues of the companion matrix ``np.roots`` builds, without its trimming of
+    leading and trailing zeros (half its time on a polynomial of degree 8) when neither end
+    is 0; otherwise ``np.roots`` itself.
+    """
+    if len(coefficients) < 2 or coefficients[0] == 0.0 or coefficients[-1] == 0.0:
+        return np.roots(coefficients)
+    companion = np.eye(len(coefficients) - 1, k=-1)
+    lead = coefficients[0]
+    companion[0] = [-value / lead for value in coefficients[1:]]
+    return np.linalg.eigvals(companion)
 
 
 class Conduction(Effect):

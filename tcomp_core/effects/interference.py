@@ -40,12 +40,25 @@ def interference_line(
     ndarray, shape like ``time``
         Degrees C on the channel ``params["interference_channel"]`` carries it on.
     """
-    phase = 2.0 * np.pi * params["interference_hz"] * np.asarray(time, dtype=np.float64)
-    line = np.zeros(phase.shape)
-    for h in HARMONICS:
-        line += params[f"interference_a{h}"] * np.cos(h * phase)
-        line += params[f"interference_b{h}"] * np.sin(h * phase)
+    return _line(params, _harmonics(params["interference_hz"], time))
+
+
+def _harmonics(frequency_hz: float, time: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+    """cos(2πhft) and sin(2πhft) of every harmonic h, in :data:`HARMONICS` order."""
+    phase = 2.0 * np.pi * frequency_hz * np.asarray(time, dtype=np.float64)
+    return [wave for h in HARMONICS for wave in (np.cos(h * phase), np.sin(h * phase))]
+
+
+def _line(params: Mapping[str, float], waves: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """Σ_h a_h cos(2πhft) + b_h sin(2πhft) from the waves of :func:`_harmonics`."""
+    line = np.zeros(waves[0].shape)
+    for name, wave in zip(_AMPLITUDES, waves, strict=True):
+        line += params[name] * wave
     return line
+
+
+#: The amplitudes, in the order of :func:`_harmonics`'s waves.
+_AMPLITUDES = tuple(f"interference_{part}{h}" for h in HARMONICS for part in ("a", "b"))
 
 
 def find_line(
@@ -154,6 +167,7 @@ class Interference(Effect):
 
     def __init__(self) -> None:
         self._cache: tuple[tuple[float, ...], NDArray[np.float64]] | None = None
+        self._waves: tuple[tuple[float, ...], list[NDArray[np.float64]]] | None = None
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         span = 10.0 * context.level_std_c + 10.0
@@ -210,9 +224,18 @@ class Interference(Effect):
     ) -> NDArray[np.float64] | None:
         if sensor != int(params.get("interference_channel", 2)):
             return None
-        key = (context.time.size, context.dt, *(params[s.name] for s in self.specs(context)))
+        key = (
+            context.time.size,
+            context.dt,
+            params["interference_hz"],
+            *(params[name] for name in _AMPLITUDES),
+        )
         if self._cache is None or self._cache[0] != key:
-            line = interference_line(params, context.time)
+            # A fit moves the amplitudes more often than the frequency: the waves are kept.
+            waves_key = key[:3]
+            if self._waves is None or self._waves[0] != waves_key:
+                self._waves = (waves_key, _harmonics(params["interference_hz"], context.time))
+            line = _line(params, self._waves[1])
             line.flags.writeable = False
             self._cache = (key, line)  # one array per parameter set: the fit's memo keys on it
         return self._cache[1]

@@ -18,8 +18,10 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+import operator
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,7 +31,15 @@ from scipy.optimize import least_squares
 from ..errors import EstimationError
 from ..tolerance import class2_level_tolerance_c
 from .base import KELVIN, Effect, FitContext, ParamSpec
-from .chain import SHIFT_HALF_TAPS, SensorChain, gas_from_reading, reading_from_gas
+from .chain import (
+    SHIFT_HALF_TAPS,
+    Aligned,
+    SensorChain,
+    aligned_reading,
+    gas_and_noise_gain,
+    gas_from_reading,
+    reading_from_gas,
+)
 from .registry import EFFECTS, check_effect_names
 
 __all__ = ["LEVEL", "LeastSquaresProblem", "Model", "make_context"]
@@ -100,6 +110,23 @@ def make_context(
     )
 
 
+#: The hooks of :class:`~.base.Effect` that set fields of a sensor chain.
+_CHAIN_HOOKS = (
+    "additive",
+    "calibration",
+    "conduction",
+    "tau_factor",
+    "level_exponent",
+    "radiation",
+    "delay_s",
+)
+#: Every field of a sensor chain, in order (the memo's key), and where its arrays are.
+_CHAIN_FIELDS = operator.attrgetter(*(f.name for f in fields(SensorChain)))
+_ARRAY_FIELDS = tuple(
+    i for i, f in enumerate(fields(SensorChain)) if f.name in ("factor", "film_sos", "additive")
+)
+
+
 class _ChainMemo:
     """The last few inverse-chain results of each sensor, within one fit.
 
@@ -114,18 +141,19 @@ class _ChainMemo:
     SIZE = 3
 
     def __init__(self) -> None:
-        self._entries: dict[int, list[tuple[SensorChain, tuple]]] = {1: [], 2: []}
+        self._entries: dict[int, list[tuple[tuple, SensorChain, tuple]]] = {1: [], 2: []}
+        # Per sensor: the last readings aligned (line off, delay undone), which most columns
+        # of a Jacobian share, with the key and the line array it was computed for.
+        self._aligned: dict[int, tuple[tuple, SensorChain, Aligned]] = {}
 
     @staticmethod
-    def _same(a: SensorChain, b: SensorChain) -> bool:
-        for f in fields(SensorChain):
-            left, right = getattr(a, f.name), getattr(b, f.name)
-            if isinstance(left, np.ndarray) or isinstance(right, np.ndarray):
-                if left is not right:  # arrays (factor, film filter) by identity
-                    return False
-            elif left != right:
-                return False
-        return True
+    def _key(chain: SensorChain) -> tuple:
+        """Every field: scalars by value, arrays (factor, film filter, line) by identity."""
+        key = list(_CHAIN_FIELDS(chain))
+        for i in _ARRAY_FIELDS:
+            if key[i] is not None:
+                key[i] = ("array", id(key[i]))
+        return tuple(key)
 
     def gas(
         self,
@@ -133,14 +161,25 @@ class _ChainMemo:
         chain: SensorChain,
         reading: NDArray[np.float64],
         context: FitContext,
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """:func:`gas_from_reading` of ``chain``, from the memo when it was just computed."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | float]:
+        """:func:`~.chain.gas_and_noise_gain` of ``chain``, from the memo when just computed."""
         entries = self._entries[sensor]
-        for stored, value in entries:
-            if self._same(stored, chain):
+        key = self._key(chain)
+        for stored, _, value in entries:
+            if stored == key:
                 return value
-        value = gas_from_reading(chain, reading, context.dt, context.noise_kernel)
-        entries.insert(0, (chain, value))
+        aligned = None
+        if chain.additive is not None or chain.delay_s:
+            line = None if chain.additive is None else id(chain.additive)
+            stage = (line, chain.delay_s)
+            found = self._aligned.get(sensor)
+            if found is None or found[0] != stage:
+                # The chain is kept with it: the line's identity stays its own.
+                found = (stage, chain, aligned_reading(chain, reading, context.dt))
+                self._aligned[sensor] = found
+            aligned = found[2]
+        value = gas_and_noise_gain(chain, reading, context.dt, context.noise_kernel, aligned)
+        entries.insert(0, (key, chain, value))
         del entries[self.SIZE :]
         return value
 
@@ -290,8 +329,18 @@ class Model:
     def __post_init__(self) -> None:
         names = check_effect_names(self.effects)
         object.__setattr__(self, "effects", names)
-        object.__setattr__(self, "_instances", tuple(_effect(name) for name in names))
+        instances = tuple(_effect(name) for name in names)
+        object.__setattr__(self, "_instances", instances)
         object.__setattr__(self, "params", dict(self.params))
+        # Per chain hook, the effects that override it (the others return the neutral value):
+        # a fit builds the chains for every residual.
+        hooked = {
+            hook: tuple(
+                e for e in instances if getattr(type(e), hook) is not getattr(Effect, hook)
+            )
+            for hook in _CHAIN_HOOKS
+        }
+        object.__setattr__(self, "_hooked", hooked)
 
     @property
     def instances(self) -> tuple[Effect, ...]:
@@ -364,8 +413,12 @@ class Model:
     @property
     def phi(self) -> float:
         """Noise variance ratio assumed by the fit."""
+        return self._phi(self.params)
+
+    def _phi(self, params: Mapping[str, float]) -> float:
+        """The noise variance ratio these parameters give the model's effects."""
         for effect in self.instances:
-            value = effect.noise_ratio(self.params)
+            value = effect.noise_ratio(params)
             if value is not None:
                 return value
         return 1.0
@@ -418,39 +471,49 @@ class Model:
     def chains(self, context: FitContext, params: Mapping[str, float] | None = None):
         """The resolved :class:`SensorChain` of sensors 1 and 2."""
         params = self.params if params is None else params
+        hooked: dict[str, tuple[Effect, ...]] = self._hooked  # type: ignore[attr-defined]
+        has_level = self.has_level
+        # The hooks that do not depend on the sensor, once for both.
+        common: dict[str, Any] = {}
+        for effect in hooked["tau_factor"]:
+            factor = effect.tau_factor(context, params)
+            if factor is not None:
+                common["factor"] = factor
+        for effect in hooked["level_exponent"]:
+            exponent = effect.level_exponent(params)
+            if exponent is not None:
+                common["level_exponent"] = exponent
+                common["level_ref_k"] = context.level_mean_c + KELVIN
+                common["film_sos"] = _film_filter(context.dt, context.film_cutoff_hz)
         chains = []
         for sensor in (1, 2):
-            chain = SensorChain(tau=params[f"tau{sensor}"])
-            if sensor == 2 and self.has_level and params.get(LEVEL, 0.0):
-                chain = replace(chain, offset=params[LEVEL])
-            for effect in self.instances:
+            # The fields each effect sets, later effects over earlier ones. Each field has one
+            # hook (the level's offset is set before any), so hook by hook is effect by effect.
+            values: dict[str, Any] = {"tau": params[f"tau{sensor}"]}
+            if sensor == 2 and has_level and params.get(LEVEL, 0.0):
+                values["offset"] = params[LEVEL]
+            for effect in hooked["additive"]:
                 additive = effect.additive(sensor, params, context)
                 if additive is not None:
-                    chain = replace(chain, additive=additive)
+                    values["additive"] = additive
+            for effect in hooked["calibration"]:
                 gain, offset = effect.calibration(sensor, params)
                 if (gain, offset) != (1.0, 0.0):
-                    chain = replace(chain, gain=gain, offset=offset)
+                    values["gain"], values["offset"] = gain, offset
+            for effect in hooked["conduction"]:
                 conduction = effect.conduction(sensor, params)
                 if conduction is not None:
-                    fin_ml, tau_p, mode0 = conduction
-                    chain = replace(chain, fin_ml=fin_ml, tau_p=tau_p, mode0=mode0)
-                factor = effect.tau_factor(context, params)
-                if factor is not None:
-                    chain = replace(chain, factor=factor)
-                exponent = effect.level_exponent(params)
-                if exponent is not None:
-                    chain = replace(
-                        chain,
-                        level_exponent=exponent,
-                        level_ref_k=context.level_mean_c + KELVIN,
-                        film_sos=_film_filter(context.dt, context.film_cutoff_hz),
-                    )
+                    values["fin_ml"], values["tau_p"], values["mode0"] = conduction
+            values.update(common)
+            for effect in hooked["radiation"]:
                 radiation = effect.radiation(sensor, params, context)
                 if radiation is not None:
-                    chain = replace(chain, r=radiation[0], wall_k=radiation[1])
-                if sensor == 2 and effect.delay_s(params):
-                    chain = replace(chain, delay_s=effect.delay_s(params))
-            chains.append(chain)
+                    values["r"], values["wall_k"] = radiation
+            for effect in hooked["delay_s"] if sensor == 2 else ():
+                delay_s = effect.delay_s(params)
+                if delay_s:
+                    values["delay_s"] = delay_s
+            chains.append(SensorChain(**values))
         return chains[0], chains[1]
 
     def reconstruct(
@@ -480,7 +543,7 @@ class Model:
         memo = _ChainMemo() if memo is None else memo
         gas1, gain1 = memo.gas(1, first, tc1, context)
         gas2, gain2 = memo.gas(2, second, tc2, context)
-        phi = Model(self.effects, params).phi
+        phi = self._phi(params)
         return (gas1 - gas2) / (context.sigma2 * np.sqrt(phi * gain1 + gain2))
 
     def simulate(
@@ -507,9 +570,20 @@ class Model:
         ndarray, shape (N,)
             The other sensor's simulated readings, degrees C.
         """
+        return self.simulator(reading, source, context)(initial_reading)
+
+    def simulator(
+        self, reading: NDArray[np.float64], source: int, context: FitContext
+    ) -> Callable[[float], NDArray[np.float64]]:
+        """:meth:`simulate` as a function of the initial reading (the gas computed once).
+
+        A free run that restarts from several initial readings (:mod:`tcomp_core.diagnose.
+        heldout`) inverts the source sensor's chain once.
+        """
         chains = self.chains(context)
         gas, _ = gas_from_reading(chains[source - 1], reading, context.dt)
-        return reading_from_gas(chains[2 - source], gas, context.dt, initial_reading)
+        other = chains[2 - source]
+        return lambda initial_reading: reading_from_gas(other, gas, context.dt, initial_reading)
 
     # -- fitting ----------------------------------------------------------------------------
 
@@ -646,8 +720,11 @@ class Model:
         memo = _ChainMemo()
         level_sd = _level_prior_sd(context) if any(s.name == LEVEL for s in specs) else None
 
+        # The effects with a penalty (the others add no rows).
+        penalising = [e for e in self.instances if type(e).penalty is not Effect.penalty]
+
         def penalties(values: Mapping[str, float]) -> list[NDArray[np.float64]]:
-            extra = [effect.penalty(values, n_rows) for effect in self.instances]
+            extra = [effect.penalty(values, n_rows) for effect in penalising]
             if level_sd is not None:
                 extra.append(np.array([values[LEVEL] / level_sd]))
             return extra
@@ -658,7 +735,9 @@ class Model:
                 extra = penalties(values)
                 return np.concatenate(extra) if extra else np.empty(0)
             r = self.cross_residual(tc1, tc2, context, values, memo)[rows]
-            r = np.where(np.isfinite(r), r, 1e6)
+            finite = np.isfinite(r)
+            if not finite.all():
+                r = np.where(finite, r, 1e6)
             extra = penalties(values)
             return np.concatenate([r, *extra]) if extra else r
 

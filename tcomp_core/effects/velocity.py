@@ -9,6 +9,7 @@ penalty keeps s(t) smooth across the held-out blocks between knots.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 
 import numpy as np
@@ -39,6 +40,17 @@ def _basis(context: FitContext) -> NDArray[np.float64]:
     inner = np.linspace(start, stop, n_intervals + 1)
     knots = np.concatenate(([start] * _DEGREE, inner, [stop] * _DEGREE))
     return BSpline.design_matrix(context.time, knots, _DEGREE).toarray()
+
+
+@functools.lru_cache(maxsize=16)
+def _coefficient_names(keys: tuple[str, ...]) -> tuple[str, ...]:
+    """The spline coefficients among parameter names, ``velocity_1`` first (cached by names)."""
+    return tuple(
+        sorted(
+            (key for key in keys if key.startswith("velocity_") and key[9:].isdigit()),
+            key=lambda key: int(key.split("_")[1]),
+        )
+    )
 
 
 class Velocity(Effect):
@@ -129,11 +141,7 @@ class Velocity(Effect):
         return start
 
     def _coefficients(self, params: Mapping[str, float]) -> NDArray[np.float64]:
-        names = sorted(
-            (key for key in params if key.startswith("velocity_") and key[9:].isdigit()),
-            key=lambda key: int(key.split("_")[1]),
-        )
-        return np.array([0.0, *(params[name] for name in names)])
+        return np.array([0.0, *(params[name] for name in _coefficient_names(tuple(params)))])
 
     def tau_factor(self, context: FitContext, params: Mapping[str, float]) -> NDArray[np.float64]:
         # The same array for the same coefficients: a fit's chain memo matches chains by it.
@@ -163,4 +171,5 @@ class Velocity(Effect):
         if coefficients.size < 3:
             return np.empty(0)
         weight = params.get("velocity_smoothness", SMOOTHNESS_CHOICES[0])
-        return weight * np.sqrt(n_rows) * np.diff(coefficients, 2)
+        first = coefficients[1:] - coefficients[:-1]  # np.diff(coefficients, 2), in its steps
+        return weight * np.sqrt(n_rows) * (first[1:] - first[:-1])
