@@ -261,6 +261,24 @@ def test_linear_recursion_matches_a_loop(rng):
     np.testing.assert_allclose(linear_recursion(matrix, inputs, initial), np.stack(expected, 1))
 
 
+@pytest.mark.parametrize("columns", [1, 16])  # the Schur basis, and sample by sample
+def test_an_ill_conditioned_recursion_matches_a_loop(rng, columns):
+    # A near-Jordan block: its eigenvectors are almost parallel (condition ~1e9), so neither
+    # the eigenbasis nor its powers may be used; 8 states x 16 columns run sample by sample.
+    states = 8
+    matrix = np.diag(np.full(states, 0.95)) + np.diag(np.full(states - 1, 0.5), 1)
+    matrix[np.diag_indices(states)] += np.linspace(0.0, 1e-9, states)
+    assert np.linalg.cond(np.linalg.eig(matrix)[1]) > 1e8
+    inputs = rng.standard_normal((states, 300, columns))
+    initial = rng.standard_normal((states, columns))
+    expected, state = [], initial
+    for j in range(300):
+        state = matrix @ state + inputs[:, j]
+        expected.append(state)
+    found = linear_recursion(matrix, inputs, initial)
+    np.testing.assert_allclose(found, np.stack(expected, 1), rtol=1e-9, atol=1e-9)
+
+
 def test_result_shapes_and_given_noise():
     pair = make_pair("ramp", duration=1.0, noise_percent=1.0)
     result = fuse(

@@ -31,6 +31,12 @@ SHORT_BATCH = 64
 MODAL_CONDITION = 1e6
 #: Largest condition number of the eigenvectors for which matrix powers come from them.
 MAX_EIGENVECTOR_CONDITION = 1e8
+#: Least states × columns for which an ill-conditioned recursion runs sample by sample (one
+#: matrix product each) instead of in the Schur basis (n²/2 array operations over the whole
+#: record). Measured on 10 000 samples: n = 35 with 35 columns 2.0 s Schur against 0.15 s,
+#: 16 × 16 0.31 against 0.044, 10 × 10 0.12 against 0.040; 35 × 1 0.037 against 0.035 and
+#: 10 × 1 0.010 against 0.029.
+SAMPLE_LOOP_SIZE = 64
 
 
 def apply_matrix(matrix: NDArray, array: NDArray) -> NDArray:
@@ -75,7 +81,23 @@ def linear_recursion(
     eigenvalues, vectors = np.linalg.eig(matrix)
     if np.linalg.cond(vectors) <= MODAL_CONDITION:
         return _eigenbasis_recursion(eigenvalues, vectors, inputs, initial)
+    if inputs.shape[0] * inputs.shape[2] >= SAMPLE_LOOP_SIZE:
+        return _sample_recursion(matrix, inputs, initial)
     return _schur_recursion(matrix, inputs, initial)
+
+
+def _sample_recursion(
+    matrix: NDArray[np.float64], inputs: NDArray[np.float64], initial: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:func:`linear_recursion` one sample at a time (a matrix product each)."""
+    steps = np.moveaxis(inputs, 1, 0)  # (M, n, m): sample first, a view
+    states = np.empty(steps.shape)
+    state = np.asarray(initial, dtype=np.float64)
+    for k, step in enumerate(steps):
+        state = matrix @ state
+        state += step
+        states[k] = state
+    return np.moveaxis(states, 0, 1)
 
 
 def _eigenbasis_recursion(
