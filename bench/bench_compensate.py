@@ -68,6 +68,7 @@ from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.effects.chain import fractional_shift
+from tcomp_core.errors import EstimationError
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
 from tcomp_core.lines import line_free_pair
@@ -169,18 +170,26 @@ def compare(
         row["smoother_ungated_full"] = scores(record, gas, None, held)[0]
     for causal in (False, True) if causal_too else (False,):
         key = "causal" if causal else "smoother"
-        first = fuse(record.tc1, record.tc2, record.dt, base.tau1, base.tau2, causal=causal)
         extended = compensate(
             output, record.time, record.tc1, record.tc2, record.dt, causal=causal
-        )
-        row[f"{key}_first"], row[f"{key}_first_offset"] = scores(
-            record, first.gas, diagnosis.eval_cutoff_hz, held
         )
         row[f"{key}_final"], row[f"{key}_final_offset"] = scores(
             record, extended.gas, diagnosis.eval_cutoff_hz, held
         )
+        try:  # the diagnosis's own first order: its base fit may be degenerate (a result)
+            first = fuse(record.tc1, record.tc2, record.dt, base.tau1, base.tau2, causal=causal)
+        except EstimationError as exc:
+            row["first_failure"] = f"{exc}"
+            first = None
+        row[f"{key}_first"], row[f"{key}_first_offset"] = (
+            (math.nan, math.nan)
+            if first is None
+            else scores(record, first.gas, diagnosis.eval_cutoff_hz, held)
+        )
         if full_band and not causal:
-            row[f"{key}_first_full"] = scores(record, first.gas, None, held)[0]
+            row[f"{key}_first_full"] = (
+                math.nan if first is None else scores(record, first.gas, None, held)[0]
+            )
             row[f"{key}_final_full"] = scores(record, extended.gas, None, held)[0]
     if default_too:
         # What a user gets with no option: ml-eiv (with the sensors' gain) and the smoother;

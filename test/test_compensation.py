@@ -257,7 +257,7 @@ def test_the_rules_say_how_each_effect_is_treated():
     cases = [
         (("radiation",), established, (), "compensated"),
         (("radiation",), unknown, (), "dynamics"),
-        (("calibration",), {}, (), "dynamics"),
+        (("calibration",), {}, (), "first order"),  # alone it would only choose a scale
         (("delay",), {}, (), "prior"),
         (("conduction",), {}, (), "compensated"),
         (("property",), {}, ("property",), "first order"),
@@ -271,6 +271,15 @@ def test_the_rules_say_how_each_effect_is_treated():
         assert model.level_reference().applied() == (
             effects if handling in ("compensated", "prior") else ()
         )
+    # A calibration beside the sensors' ordinary physics is still alone; beside an applied
+    # effect its gain is part of that effect's fit and puts both sensors on tc1's scale.
+    for others, expected, handling in (
+        (("property",), ("property",), "first order"),
+        (("conduction",), (), "dynamics"),
+    ):
+        diagnosis = _diagnosis_with(("calibration", *others), {}, expected)
+        model = output_model_from_diagnosis(diagnosis)
+        assert model.pieces[0].handling == handling, others
 
 
 def _check(
@@ -578,8 +587,9 @@ def test_a_hot_pair_is_corrected_in_level_though_the_wall_is_left_free():
 
 
 def test_a_level_handled_as_dynamics_is_not_refused_for_a_loose_parameter():
-    """Calibration is undone for the dynamics only, its level first order's: a gain spanning
-    its range is the band's business, not a refusal (the band here is narrow)."""
+    """Calibration beside an applied effect is undone for the dynamics only, its level first
+    order's: a gain spanning its range is the band's business, not a refusal (the band here is
+    narrow)."""
     from tcomp_core.compensation import output_model_from_diagnosis
     from tcomp_core.diagnose.identification import Identification
 
@@ -589,16 +599,18 @@ def test_a_level_handled_as_dynamics_is_not_refused_for_a_loose_parameter():
         change_c=3.0,
         evidence_c=2.0,
     )
-    diagnosis = _diagnosis_with(("calibration",), {}, identification=found, taus=(0.03, 0.12))
+    diagnosis = _diagnosis_with(
+        ("calibration", "conduction"), {}, identification=found, taus=(0.03, 0.12)
+    )
     model = output_model_from_diagnosis(diagnosis)
-    assert model.pieces[0].handling == "dynamics"
+    assert [piece.handling for piece in model.pieces] == ["dynamics", "compensated"]
     assert not found.checks[0].pinned and found.checks[0].free
 
 
 def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied():
-    """The identification measured on real fits: a strong delay is applied, a calibration
+    """The identification measured on real fits: a strong delay is applied; a calibration
     far below its own uncertainty on the gas is not (its parameters are determined all the
-    same)."""
+    same), nor would it be alone (it would only choose the gas's scale)."""
     from tcomp_core.compensation import output_model_from_diagnosis
     from tcomp_core.diagnose import fit_effects
     from tcomp_core.io import Record
@@ -622,8 +634,9 @@ def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied(
     assert {c.name for c in found.checks} == {"gain", "offset_c"}
     assert found.band_exceeds_change
     assert model.applied() == ()
-    assert "95 % band on the gas" in model.pieces[0].reason
-    assert (model.tau1, model.tau2) == (diagnosis.base.tau1, diagnosis.base.tau2)
+    assert "only choose the scale of the gas" in model.pieces[0].reason
+    # Its tau is fitted with the sensors' gain, as the default path's (ml-eiv) is.
+    assert (model.tau1, model.tau2) == (diagnosis.final.tau1, diagnosis.final.tau2)
 
 
 def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():

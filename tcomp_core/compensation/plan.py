@@ -382,6 +382,7 @@ def output_model_from_diagnosis(
         params=final.params,
         effects=tuple(final.effects),
         level_mean_c=diagnosis.context.level_mean_c,
+        ordinary=tuple(effect for effect in final.effects if effect in expected),
     )
     pieces = tuple(_piece(effect, effect in expected, evidence) for effect in final.effects)
     pieces = _lines_the_default_takes_off(pieces, params, first_order_lines)

@@ -261,8 +261,9 @@ class Evaluator:
         identification = None
         base_taus = self.start_taus_s or self.context.base_taus_s
         intervals = covariance.intervals()
-        # A piece undone for the dynamics only keeps first order's level: its change and band
-        # are compared without their means, as the gas is published.
+        # A piece undone for the dynamics only keeps first order's level, and an effect that
+        # fits the level (a calibration) never publishes it: their change and band are
+        # compared without their means, as the gas is published.
         evidence = OutputEvidence(
             intervals=intervals,
             params=model.params,
@@ -270,7 +271,8 @@ class Evaluator:
             level_mean_c=self.context.level_mean_c,
         )
         level_free = any(
-            effect.output_handling(evidence)[0] == "dynamics" for effect in model.instances
+            effect.fits_level or effect.output_handling(evidence)[0] == "dynamics"
+            for effect in model.instances
         )
         if model.effects and base_taus is not None:
             identification = identify(

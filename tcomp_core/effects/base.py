@@ -146,12 +146,16 @@ class OutputEvidence:
         Every effect of the fitted model, this one included.
     level_mean_c : float
         Mean temperature of the record's readings, degrees C (NaN when unknown).
+    ordinary : tuple of str
+        Effects of the model that are the sensors' ordinary physics, left first order
+        (:attr:`tcomp_core.diagnose.Diagnosis.expected_physics`).
     """
 
     intervals: Mapping[str, tuple[float, float]]
     params: Mapping[str, float]
     effects: tuple[str, ...] = ()
     level_mean_c: float = float("nan")
+    ordinary: tuple[str, ...] = ()
 
 
 class Effect:
