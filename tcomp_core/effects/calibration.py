@@ -37,13 +37,14 @@ class Calibration(Effect):
     ordinary state.
 
     Output (:meth:`output_handling`): which sensor's calibration is right cannot be seen. Alone
-    (no other effect applied) a calibration changes only which sensor's scale the gas is on:
-    ``first order``, the default path's gas, whose τ ml-eiv fits with the sensors' gain already
-    and whose smoother weighs both sensors as they read. Putting both on tc1's scale was a coin
-    flip on unseen campaign draws: 9.3 → 10.7 % with the gain error on tc1 (draw 2032), 10.3
-    → 10.1 % with it on tc2 (2018), and 3.2 → 4.2 % where radiation had been named calibration
-    (7027). Beside an applied effect the gain is part of that effect's fit: ``dynamics``, both
-    sensors on tc1's scale, the level first order's.
+    (no other effect in the model but the sensors' ordinary physics) a calibration changes only
+    which sensor's scale the gas is on: ``first order``, the default path's gas, whose τ ml-eiv
+    fits with the sensors' gain already and whose smoother weighs both sensors as they read.
+    Putting both on tc1's scale was a coin flip on campaign draws: 9.3 → 10.7 % with the gain
+    error on tc1 (draw 2032, unseen before), 10.3 → 10.1 % with it on tc2 (2018), and 3.2 →
+    4.2 % where radiation had been named calibration (7027). Beside another effect the gain is
+    part of that effect's fit: ``dynamics``, both sensors on tc1's scale, the level first
+    order's.
     """
 
     name = "calibration"
