@@ -69,6 +69,7 @@ from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.effects.chain import fractional_shift
 from tcomp_core.errors import EstimationError
+from tcomp_core.estimators import Estimate
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
 from tcomp_core.lines import line_free_pair
@@ -198,9 +199,7 @@ def compare(
         row["smoother_default"] = row["smoother_default_full"] = math.nan
         if plain is not None and plain_taus is not None:
             row["default_lines"] = [[line.frequency_hz, line.channel] for line in plain.lines]
-            # As tcomp reconstruct: the lines one sensor carries are taken off it first.
-            readings = line_free_pair(record.tc1, record.tc2, record.dt, plain.lines, plain_taus)
-            gas = fuse(*readings, record.dt, *plain_taus).gas
+            gas = default_gas(record, plain)
             row["smoother_default"] = scores(record, gas, diagnosis.eval_cutoff_hz, held)[0]
             row["smoother_default_full"] = scores(record, gas, None, held)[0]
     row["seconds"] = time.perf_counter() - started
@@ -245,12 +244,16 @@ def detailed_records(quick: bool):
         )
 
 
-def default_gas(record: Record) -> np.ndarray:
-    """The gas ``tcomp reconstruct`` gives without options: ml-eiv's τ, its lines off, smoother."""
-    plain = default_estimate(record)
+def default_gas(record: Record, plain: Estimate | None = None) -> np.ndarray:
+    """The gas ``tcomp reconstruct`` gives without options: ml-eiv's τ, its lines off, smoother.
+
+    ``plain`` is the default path's estimate of ``record`` when the caller has it already.
+    """
+    plain = default_estimate(record) if plain is None else plain
     if plain is None:
         raise ValueError(f"{record.source}: the default path refuses the record")
     taus = (float(plain.tau1), float(plain.tau2))
+    # As tcomp reconstruct: the lines one sensor carries are taken off it first.
     readings = line_free_pair(record.tc1, record.tc2, record.dt, plain.lines, taus)
     return fuse(*readings, record.dt, *taus).gas
 

@@ -397,15 +397,14 @@ def _radiation_response(
     ndarray, shape ((M - 1) // (2 * stride) + 1,)
         Sensor temperature in K every ``stride`` steps.
     """
-    gas = gas_k.tolist()
     # The gas less the wall's share of the loss, g + r Tw⁴: the balance is then g' − T − r T⁴.
     drive = (gas_k + r * wall_k**4).tolist()
     rate, half = 1.0 / tau, 0.5 * step
-    temp = _radiation_equilibrium(gas[0], r, float(wall_k[0]))
+    temp = _radiation_equilibrium(float(gas_k[0]), r, float(wall_k[0]))
     out = [temp]
     i = 0
     # Inlined scalar RK4: a Python loop over floats is ~20x faster than numpy on 2 elements.
-    for _ in range((len(gas) - 1) // (2 * stride)):
+    for _ in range((gas_k.size - 1) // (2 * stride)):
         for _ in range(stride):
             g0, gm, g1 = drive[i], drive[i + 1], drive[i + 2]
             i += 2
