@@ -765,3 +765,85 @@ def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
     assert found.change_c < 1e-6  # against first order at the fit's own τ: nothing
     at_initial = identified(Model((), {"tau1": initial[0], "tau2": initial[1]}))
     assert found.evidence_c < 0.5 * at_initial.evidence_c  # the better τ's disagreement
+
+
+@pytest.mark.parametrize(
+    ("effects", "split_c", "handling"),
+    [
+        (("property",), 0.3, "dynamics"),  # within class 2 at 700 degC (7.75 degC)
+        (("property",), -9.0, "compensated"),  # beyond it: the data fix the level
+        (("property",), math.nan, "dynamics"),  # unknown: not fixed
+        (("calibration", "property"), -9.0, "dynamics"),  # the calibration takes the level
+    ],
+)
+def test_a_level_dependent_tau_corrects_the_level_only_where_the_data_fix_it(
+    effects, split_c, handling
+):
+    from tcomp_core.effects.base import OutputEvidence
+    from tcomp_core.effects.property import Property
+
+    evidence = OutputEvidence(
+        intervals={},
+        params={"property_exponent": -0.8},
+        effects=effects,
+        level_mean_c=700.0,
+        level_split_c=split_c,
+    )
+    got, reason = Property().output_handling(evidence)
+    assert got == handling, reason
+    assert reason
+
+
+class _Form:
+    name = "property"
+    alternative_forms = ({"property_film_weight": 0.0},)
+
+
+class _Forms:
+    instances = (_Form(),)
+
+
+def test_a_form_the_data_cannot_rule_out_widens_the_band_and_must_find_the_change():
+    from tcomp_core.diagnose.identification import _form_band
+
+    keep = np.ones(200, dtype=bool)
+    gas = np.sin(np.linspace(0.0, 20.0, 200))
+    other = {"moved": gas + 0.5 * np.cos(np.linspace(0.0, 20.0, 200))}
+
+    def gas_of(model):
+        return other[model]
+
+    # Not ruled out: its move is the band's, its (smaller) change the one that counts.
+    move, smallest, note = _form_band(
+        _Forms(), gas, gas_of, lambda model: 0.4, lambda name, s: "moved", keep, False
+    )
+    assert move == pytest.approx(0.5 / math.sqrt(2.0), rel=0.05)
+    assert smallest == 0.4 and "property_film_weight = 0" in note
+    # Ruled out by the held-out data: nothing.
+    assert _form_band(
+        _Forms(), gas, gas_of, lambda model: 0.4, lambda name, s: None, keep, False
+    ) == (0.0, math.inf, "")
+
+    # A refit that fails leaves the form's change unbounded.
+    from tcomp_core.errors import EstimationError
+
+    def failing(name, settings):
+        raise EstimationError("no fit")
+
+    move, _, note = _form_band(_Forms(), gas, gas_of, lambda m: 0.4, failing, keep, False)
+    assert math.isinf(move) and "failed" in note
+
+
+def test_a_property_fit_reports_its_other_form_and_the_level_it_splits():
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.io import Record
+
+    sim = simulate_effect("property", "multisine", duration=10.0, noise_percent=1.0, seed=3)
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="t", dt=sim.dt)
+    found = fit_effects(record, ("property",)).final.identification
+    summary = found.summary()
+    assert math.isfinite(found.level_split_c) and summary["level_split_c"] is not None
+    # Either the held-out data told the junction's form from the film's, or what it changes
+    # is inside the band.
+    assert found.form_c == 0.0 or found.band_c >= found.form_c > 0.0
+    assert (found.form_c > 0.0) == bool(summary["form_note"])

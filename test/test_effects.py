@@ -29,6 +29,12 @@ CHAINS = {
     "radiation": SensorChain(tau=0.1, r=0.05 / (4 * 1000.0**3), wall_k=600.0),
     "delay": SensorChain(tau=0.1, delay_s=0.0071),
     "property": SensorChain(tau=0.1, level_exponent=-0.6, level_ref_k=973.15),
+    "property at the junction": SensorChain(
+        tau=0.1, level_exponent=-0.6, level_ref_k=973.15, film_weight=0.0
+    ),
+    "property by the lag": SensorChain(
+        tau=0.1, level_exponent=-0.6, level_ref_k=973.15, level_weight=0.0
+    ),
     "interference": SensorChain(tau=0.1, additive=0.5 * np.sin(2 * np.pi * 50.0 * TIME)),
     "all": SensorChain(
         tau=0.1,
@@ -60,6 +66,22 @@ def test_forward_then_inverse_returns_the_gas(name):
     tolerance = 1e-4 if chain.delay_s else 2e-5 if chain.level_exponent else 1e-6
     np.testing.assert_allclose(recovered[inside], gas[inside], atol=tolerance * 700)
     assert np.all(noise_gain > 1.0)
+
+
+def test_the_temperature_that_sets_a_level_dependent_tau_is_the_chains_choice():
+    # The film (w = 0.5) and the junction (w = 0) are two forms of one law: both directions of
+    # the chain must use the weight, or a round trip would pass with it ignored.
+    gas = gas_signal("multisine", TIME[:-1], f_max_hz=100.0, mean=700.0, amplitude=200.0)
+    film = CHAINS["property"]
+    junction = CHAINS["property at the junction"]
+    start = float(gas[0])
+    film_reading = reading_from_gas(film, gas, DT, initial_reading=start)
+    junction_reading = reading_from_gas(junction, gas, DT, initial_reading=start)
+    assert np.max(np.abs(film_reading - junction_reading)) > 1.0
+    misread, _ = gas_from_reading(film, junction_reading, DT)
+    inside = np.isfinite(misread)
+    inside[:40] = inside[-40:] = False
+    assert np.sqrt(np.mean((misread[inside] - gas[inside]) ** 2)) > 0.3  # round trip: 0.014
 
 
 def test_fractional_shift_interpolates_a_smooth_signal_exactly_enough():

@@ -296,6 +296,8 @@ class OutputModel:
                 f"a change of {found.change_c:.3g} degC rms; the sensors' first-order "
                 f"disagreement {found.evidence_c:.3g} degC rms"
             )
+            if found.form_note:
+                lines.append(f"  form: {found.form_note}")
             if math.isfinite(found.published_change_c):
                 lines.append(
                     f"  against the default first-order gas it changes the gas by "
@@ -383,6 +385,9 @@ def output_model_from_diagnosis(
         effects=tuple(final.effects),
         level_mean_c=diagnosis.context.level_mean_c,
         ordinary=tuple(effect for effect in final.effects if effect in expected),
+        level_split_c=(
+            math.nan if final.identification is None else final.identification.level_split_c
+        ),
     )
     pieces = tuple(_piece(effect, effect in expected, evidence) for effect in final.effects)
     pieces = _lines_the_default_takes_off(pieces, params, first_order_lines)
@@ -561,10 +566,12 @@ def _refusal(
     beyond_default = bool(first_order_failure) and not found.band_exceeds_published_change
     if found.band_exceeds_change and not beyond_default:
         why = f"; {found.band_note}" if found.band_note else ""
+        if found.form_note and math.isfinite(found.form_c):
+            why += f"; {found.form_note}"
         return (
             f"the 95 % band on the gas (+-{found.band_c:.3g} degC rms, refits leaving out one "
-            f"stretch of the record at a time) is as wide as the change the model makes to it "
-            f"({found.change_c:.3g} degC rms){why}"
+            f"stretch of the record at a time, and the effects' other forms) is as wide as the "
+            f"change the model makes to it ({found.change_c:.3g} degC rms){why}"
         )
     return ""
 

@@ -20,6 +20,7 @@ denominator; 0 is a perfect model.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 
@@ -34,7 +35,7 @@ from ..effects.chain import SHIFT_HALF_TAPS
 from ..lines import ForeignLine
 from ..sections import zero_phase
 from ..tolerance import class2_level_tolerance_c
-from .identification import held_edges, identify
+from .identification import held_edges, identify, level_split_c
 from .prepare import PreparedData
 from .result import ModelFit
 from .uncertainty import parameter_covariance, parameter_uncertainty, parameters_at_bound
@@ -243,14 +244,26 @@ class Evaluator:
             context,
         )
 
-    def refit_whole(self, fit: ModelFit) -> ModelFit:
+    def refit_model(self, model: Model, hold: frozenset[str] = frozenset()) -> Model:
+        """``model`` refitted on the whole record (``hold``: parameters kept as they are)."""
+        return model.fit(*self._fit_inputs, hold=hold)
+
+    def refit_whole(
+        self,
+        fit: ModelFit,
+        other_form: Callable[[ModelFit, str, dict[str, float]], Model | None] | None = None,
+    ) -> ModelFit:
         """``fit`` with its parameters refitted on the whole record, its held-out scores kept.
 
         Held-out blocks choose the model; once chosen, its parameters are best estimated from
         all the data (half the variance); parameters chosen by the output error
         (:attr:`~tcomp_core.effects.base.Effect.output_error_params`) keep their values. The
         simulation and reconstructions follow the new parameters; the errors remain those of
-        the held-out test.
+        the held-out test. ``other_form(fit, effect, settings)`` refits it with an effect in
+        another of its forms (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`), or
+        gives None when the held-out data rule that form out: what the forms the data do not
+        tell apart change in the gas joins its band
+        (:func:`~tcomp_core.diagnose.identification.identify`).
         """
         chosen = Model(fit.effects, fit.params)
         held = frozenset(n for e in chosen.instances for n in e.output_error_params)
@@ -269,6 +282,9 @@ class Evaluator:
             params=model.params,
             effects=model.effects,
             level_mean_c=self.context.level_mean_c,
+            level_split_c=level_split_c(
+                model, self.readings, self.context, self.scored_mask(model)[:-1]
+            ),
         )
         level_free = any(
             effect.fits_level or effect.output_handling(evidence)[0] == "dynamics"
@@ -287,6 +303,9 @@ class Evaluator:
                 level_free=level_free,
                 published_taus=self.published_taus_s,
                 published_lines=self.published_lines,
+                refit_form=None
+                if other_form is None
+                else lambda name, settings: other_form(fit, name, settings),
             )
         return replace(
             fit,

@@ -62,6 +62,17 @@ steps where the fit's own τ leave 9 °C): every correction is inferred from tha
 and a correction many times larger is carried by the model's form (a common part both sensors
 would share, which the two signals cannot see).
 
+The **form** of an effect is one reading of the literature, and the data may not tell it from
+another (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`: a property's τ at the film
+or the junction temperature, or following one wire only). The model is refitted in each other
+form (its output-error parameters searched again); a form the held-out blocks rule out (the
+fit beats it clearly, :func:`~tcomp_core.diagnose.ranking.beats_clearly`) counts no further.
+Each remaining form adds its move of the gas to the band (the largest, in quadrature), and the
+change that counts is the smallest any form makes: a correction is established only if every
+form the data allow finds it (campaign draw 2060: the shared exponent changed the gas by
+6.2 °C rms, the slower wire alone, which explained the held-out blocks as well, by 0.6; the
+change applied had put the gas 1.0 → 3.2 % off).
+
 Given the τ the default first-order path publishes (``published_taus``), the change is also
 measured against first order there (:attr:`Identification.published_change_c`): what applying
 the model changes for a user. It decides only where that default first order demonstrably fails
@@ -82,6 +93,7 @@ from numpy.typing import NDArray
 
 from ..effects import FitContext, Model
 from ..effects.base import ParamSpec
+from ..effects.model import LEVEL
 from ..errors import EstimationError
 from ..lines import ForeignLine, line_free_pair
 from .uncertainty import Z95, ParameterCovariance
@@ -237,6 +249,15 @@ class Identification:
         first-order model lacks.
     band_note : str
         Why the band is infinite ('' otherwise).
+    form_c : float
+        rms move of the gas when the model is refitted in each of its effects' other forms
+        (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`), the largest, degrees C;
+        part of ``band_c`` (in quadrature with the jackknife's); 0 without other forms.
+    form_note : str
+        Which form moved the gas most and by how much ('' without other forms).
+    level_split_c : float
+        The level difference the effects put between the two sensors, degrees C
+        (:func:`level_split_c`).
     published_change_c : float
         rms change the model makes to the gas against the first-order model at the time
         constants the default path publishes (``published_taus`` of :func:`identify`), degrees
@@ -252,6 +273,9 @@ class Identification:
     evidence_c: float = math.nan
     band_note: str = ""
     published_change_c: float = math.nan
+    form_c: float = 0.0
+    form_note: str = ""
+    level_split_c: float = math.nan
 
     def undetermined(self, effects: tuple[str, ...] | None = None) -> tuple[ParameterCheck, ...]:
         """The parameters the fit does not determine (singular, or on a bound).
@@ -302,6 +326,9 @@ class Identification:
             "gas_change_against_published_c": _finite(self.published_change_c),
             "evidence_c": _finite(self.evidence_c),
             "band_note": self.band_note,
+            "gas_form_move_c": _finite(self.form_c),
+            "form_note": self.form_note,
+            "level_split_c": _finite(self.level_split_c),
             "parameters": [check.summary() for check in self.checks],
         }
 
@@ -319,6 +346,29 @@ def held_edges(gas: NDArray[np.float64]) -> NDArray[np.float64]:
     gas[: finite[0]] = gas[finite[0]]
     gas[finite[-1] + 1 :] = gas[finite[-1]]
     return gas
+
+
+def level_split_c(
+    model: Model,
+    readings: tuple[NDArray[np.float64], NDArray[np.float64]],
+    context: FitContext,
+    keep: NDArray[np.bool_],
+) -> float:
+    """The level difference the model's effects put between the two sensors, degrees C.
+
+    Each sensor's reconstruction under the model (its sensor offset ``level_c`` left out)
+    less its first-order reconstruction at the model's τ is what the effects move that
+    sensor's gas by; the difference of the two moves' means over ``keep`` (shape (N - 1,)) is
+    the part of the sensors' level difference the effects explain. NaN when not finite.
+    """
+    params = dict(model.params)
+    params.pop(LEVEL, None)
+    gas1, gas2 = _gas_pair(Model(model.effects, params), readings, context)
+    first1, first2 = _gas_pair(
+        Model((), {"tau1": model.tau1, "tau2": model.tau2}), readings, context
+    )
+    split = float(np.nanmean((gas1 - first1)[keep]) - np.nanmean((gas2 - first2)[keep]))
+    return split if math.isfinite(split) else math.nan
 
 
 def _gas_pair(
@@ -366,6 +416,52 @@ def _jackknife_band(
     count = len(gases)
     variance = (count - 1) / count * np.sum((stacked - stacked.mean(axis=0)) ** 2, axis=0)
     return Z95 * math.sqrt(float(np.mean(variance))), ""
+
+
+def _form_band(
+    model: Model,
+    gas: NDArray[np.float64],
+    gas_of: Callable[[Model], NDArray[np.float64]],
+    change_of: Callable[[Model], float],
+    refit_form: Callable[[str, dict[str, float]], Model | None],
+    keep: NDArray[np.bool_],
+    level_free: bool,
+) -> tuple[float, float, str]:
+    """What the effects' other forms do to the gas: the largest move, the smallest change.
+
+    Each form is the model refitted with that form's settings (warm-started at the fit; a form
+    the held-out data rule out, for which ``refit_form`` gives None, is left out). Its
+    move is its gas less the fit's, rms over ``keep`` (the mean removed when ``level_free``);
+    its change is ``change_of`` the refit (against first order at the refit's own τ). Returns
+    the largest move (inf when a refit fails: the form's change cannot be bounded), the
+    smallest change (inf without other forms) and which form moved the gas most.
+    """
+    worst, smallest, note = 0.0, math.inf, ""
+    for effect in model.instances:
+        for settings in effect.alternative_forms:
+            label = ", ".join(f"{name} = {value:g}" for name, value in settings.items())
+            try:
+                other = refit_form(effect.name, dict(settings))
+                if other is None:  # the held-out data tell the forms apart
+                    continue
+                move = gas_of(other) - gas
+                change = change_of(other)
+            except (EstimationError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                failed = f"the refit in {effect.name}'s other form ({label}) failed: {exc}"
+                return math.inf, math.nan, failed
+            if level_free:
+                move = move - np.mean(move[keep])
+            size = _rms(move, keep)
+            if not math.isfinite(size):
+                return math.inf, math.nan, f"the refit in {effect.name}'s other form is not finite"
+            smallest = min(smallest, change)
+            if size >= worst:
+                worst = size
+                note = (
+                    f"{effect.name} in its other form ({label}) moves the gas {size:.3g} degC "
+                    f"rms and changes it by {change:.3g} against its first order"
+                )
+    return worst, smallest, note
 
 
 def _valley_move(
@@ -441,6 +537,7 @@ def identify(
     level_free: bool = False,
     published_taus: tuple[float, float] | None = None,
     published_lines: Sequence[ForeignLine] = (),
+    refit_form: Callable[[str, dict[str, float]], Model | None] | None = None,
 ) -> Identification:
     """Check a fitted model's effect parameters and its gas band (see the module docstring).
 
@@ -474,6 +571,11 @@ def identify(
         without them, as it publishes its gas (with a 3 °C mains line on a 66 ms wire,
         amplified 25 times by the inverse lag, the change came out 39 °C rms, of which 24
         were the model's).
+    refit_form : callable, optional
+        ``(effect name, settings)`` → the model refitted on all rows with that effect in the
+        form the settings give, or None when the held-out data rule that form out: the
+        effects' other forms (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`) are
+        tried with it and what they change in the gas joins the band. None: not tried.
     """
 
     def gas_of(fitted: Model) -> NDArray[np.float64]:
@@ -485,10 +587,16 @@ def identify(
     def first_order(taus: tuple[float, float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return _gas_pair(Model((), {"tau1": taus[0], "tau2": taus[1]}), readings, context)
 
-    def change_against(first1: NDArray[np.float64], first2: NDArray[np.float64]) -> float:
-        """The model's gas less the first-order gas ``first1``, ``first2``: rms, in band."""
-        change = gas - lowpass(0.5 * (first1 + first2))
+    def change_against(
+        first1: NDArray[np.float64], first2: NDArray[np.float64], of: NDArray[np.float64] = gas
+    ) -> float:
+        """The gas ``of`` (the model's) less the first-order gas ``first1``, ``first2``: rms."""
+        change = of - lowpass(0.5 * (first1 + first2))
         return _rms(change - np.mean(change[keep]) if level_free else change, keep)
+
+    def change_of(other: Model) -> float:
+        """The change ``other`` makes to the gas against first order at its own τ."""
+        return change_against(*first_order((other.tau1, other.tau2)), of=gas_of(other))
 
     own = first_order((model.tau1, model.tau2))
     disagreements = [lowpass(pair[0] - pair[1]) for pair in (own, first_order(base_taus))]
@@ -504,6 +612,17 @@ def identify(
         )
         published_change_c = change_against(*published)
     band_c, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free)
+    form_c, form_note = 0.0, ""
+    if refit_form is not None:
+        form_c, smallest, form_note = _form_band(
+            model, gas, gas_of, change_of, refit_form, keep, level_free
+        )
+        if form_c > 0.0:  # the form's move and the data's, independent: in quadrature
+            band_c = math.sqrt(band_c**2 + form_c**2)
+        if not math.isfinite(form_c) and not band_note:
+            band_note = form_note
+        # A correction is established only if every form finds it.
+        change_c = min(change_c, smallest) if math.isfinite(smallest) else change_c
     owned = {
         spec.name: (effect.name, spec)
         for effect in model.instances
@@ -550,4 +669,7 @@ def identify(
         evidence_c=evidence_c,
         band_note=band_note,
         published_change_c=published_change_c,
+        form_c=form_c,
+        form_note=form_note,
+        level_split_c=level_split_c(model, readings, context, keep),
     )

@@ -16,6 +16,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +33,7 @@ from .prepare import PreparedData, block_length_s, prepare
 from .ranking import (
     MAX_EFFECTS,
     beats_clearly,
+    fit_other_form,
     fit_with_effect,
     is_expected_physics,
     is_significant,
@@ -449,7 +451,7 @@ def diagnose(
     evaluator, model, base, failure = _base_fit(record, published_taus, published_lines)
     staircase = _staircase(evaluator, model, base, candidates, max_effects)
     steps = staircase.steps
-    steps[-1] = evaluator.refit_whole(steps[-1])
+    steps[-1] = evaluator.refit_whole(steps[-1], partial(fit_other_form, evaluator))
     findings = [effect for effect in steps[-1].effects if effect not in staircase.expected]
     verdict = findings[0] if findings else "none"
     if verdict == "none" and is_unexplained(steps[-1]):
@@ -506,6 +508,6 @@ def fit_effects(
             )
         )
         steps.append(evaluator.with_intervals(fit))
-    steps[-1] = evaluator.refit_whole(steps[-1])
+    steps[-1] = evaluator.refit_whole(steps[-1], partial(fit_other_form, evaluator))
     verdict = effects[-1] if effects else "none"
     return _diagnosis(evaluator, steps[0], failure, steps, [suspects] if suspects else [], verdict)

@@ -352,6 +352,39 @@ def _output_error_fit(
     return current
 
 
+def fit_other_form(
+    evaluator: Evaluator, fit: ModelFit, effect_name: str, settings: dict[str, float]
+) -> Model | None:
+    """The chosen model refitted with ``effect_name`` in another form, or None if ruled out.
+
+    The other form's settings replace the fit's; the effect's output-error parameters are
+    searched again as :func:`fit_with_effect` searched them (the others' held), on the
+    estimation blocks. The held-out blocks rule the form out when the chosen fit beats it
+    clearly (:func:`beats_clearly`): the data then tell the forms apart. Otherwise the form
+    is refitted on the whole record, as :meth:`~.heldout.Evaluator.refit_whole` refits the
+    chosen one, and returned.
+    """
+    start = Model(fit.effects, {**fit.params, **settings})
+    effect = next(e for e in start.instances if e.name == effect_name)
+    others = frozenset(
+        n
+        for e in start.instances
+        if e.name != effect_name
+        for n in e.output_error_params
+        if n in start.params
+    )
+    if effect.output_error_params:
+        fitted = _output_error_fit(
+            evaluator, start, effect.output_error_params, effect.output_error_coupled
+        )
+    else:
+        fitted = evaluator.fit(start, hold=others)
+    if beats_clearly(fit, evaluator.evaluate(fitted)):
+        return None
+    held = frozenset(n for e in fitted.instances for n in e.output_error_params)
+    return evaluator.refit_model(fitted, held)
+
+
 def _output_error_held(model: Model) -> frozenset[str]:
     """Parameters of ``model``'s effects chosen by the output error: held when others join."""
     return frozenset(

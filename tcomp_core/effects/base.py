@@ -20,6 +20,8 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from ..tolerance import class2_level_tolerance_c
+
 __all__ = ["KELVIN", "Effect", "Evidence", "FitContext", "OutputEvidence", "ParamSpec"]
 
 #: Offset between degrees Celsius and kelvin.
@@ -149,6 +151,10 @@ class OutputEvidence:
     ordinary : tuple of str
         Effects of the model that are the sensors' ordinary physics, left first order
         (:attr:`tcomp_core.diagnose.Diagnosis.expected_physics`).
+    level_split_c : float
+        The level difference the model's effects put between the two sensors' gas, degrees C
+        (:func:`tcomp_core.diagnose.identification.level_split_c`; NaN when unknown): all the
+        data say of the level the effects correct.
     """
 
     intervals: Mapping[str, tuple[float, float]]
@@ -156,6 +162,31 @@ class OutputEvidence:
     effects: tuple[str, ...] = ()
     level_mean_c: float = float("nan")
     ordinary: tuple[str, ...] = ()
+    level_split_c: float = float("nan")
+
+
+def level_not_fixed(fit: OutputEvidence, split_c: float, what: str) -> str:
+    """Why the level ``what`` corrects stays first order's, or '' when the data fix it.
+
+    The only thing that fixes such a level is the level difference the effect puts between the
+    two sensors (``split_c``, degrees C; NaN when unknown): not when a calibration in the same
+    model takes that difference, nor when it is within what two IEC 60584 class-2 sensors may
+    differ by at the record's level anyway.
+    """
+    if "calibration" in fit.effects:
+        return (
+            "a calibration in the same model takes the sensors' level difference, the only "
+            f"thing that fixes {what}: it stays first order's"
+        )
+    tolerance = class2_level_tolerance_c(fit.level_mean_c)
+    if not abs(split_c) > tolerance:
+        return (
+            f"the part of the sensors' level difference that fixes {what}, {split_c:+.3g} degC "
+            f"at {fit.level_mean_c:.4g} degC, is within what IEC 60584 class 2 alone allows "
+            f"there ({tolerance:.2g} degC): the correction would rest on the sensors' "
+            "tolerance, not on the data, and the level stays first order's"
+        )
+    return ""
 
 
 class Effect:
@@ -165,6 +196,12 @@ class Effect:
     name: ClassVar[str] = ""
     #: One line: what is physically missing from the base model.
     summary: ClassVar[str] = ""
+    #: Other forms of the same physics, as settings carried in the parameters (one dict per
+    #: form): the fit's own form is one reading of the literature, and the data cannot always
+    #: tell them apart. The model is refitted in each (:mod:`tcomp_core.diagnose.
+    #: identification`) and what the form changes in the gas joins the gas's band: a
+    #: correction that rests on the form, not on the data, is not applied.
+    alternative_forms: ClassVar[tuple[dict[str, float], ...]] = ()
     #: Settings of the fit (neither searched nor measured) to choose between on held-out data:
     #: one dict of values per choice, carried in the parameters (see
     #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`); the first is the default.
@@ -311,6 +348,17 @@ class Effect:
     def level_exponent(self, params: Mapping[str, float]) -> float | None:
         """Exponent p of τ ∝ (T/T̄)^p with the sensor's temperature T in kelvin, or None."""
         return None
+
+    def level_weights(self, params: Mapping[str, float]) -> tuple[float, float]:
+        """``(a, w)`` of the temperature T = T̄ + a (Tj − T̄) + w (Tg − Tj) that sets τ.
+
+        (1, 0.5): the film temperature (:class:`~tcomp_core.effects.chain.SensorChain`).
+        """
+        return 1.0, 0.5
+
+    def level_shares(self, params: Mapping[str, float]) -> tuple[float, float]:
+        """Factors on the exponent of :meth:`level_exponent` for sensors 1 and 2 (1: shared)."""
+        return 1.0, 1.0
 
     def radiation(
         self, sensor: int, params: Mapping[str, float], context: FitContext

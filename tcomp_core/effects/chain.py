@@ -65,6 +65,12 @@ class SensorChain:
     level_exponent, level_ref_k : float
         τ scales as (T/T_ref)^level_exponent with the film temperature T in kelvin, halfway
         between the junction and the gas (gas properties); 0 means none.
+    level_weight, film_weight : float
+        How that temperature is made: T = T_ref + a (Tj − T_ref) + w (Tg − Tj) with a the
+        level weight and w the film weight. a = 1, w = 0.5 is the film (the gas properties at
+        the film temperature), a = 1, w = 0 the junction's own temperature (its heat
+        capacity), a = 0, w = 0.5 the film's departure from the level alone (how far the
+        junction lags the gas: the temperature loading of the heat transfer).
     film_sos : ndarray or None
         Zero-phase low-pass (second-order sections) applied to the gas before it sets the film
         temperature: the gas reconstructed from readings carries their noise amplified, and
@@ -89,6 +95,8 @@ class SensorChain:
     delay_s: float = 0.0
     level_exponent: float = 0.0
     level_ref_k: float = 1.0
+    level_weight: float = 1.0
+    film_weight: float = 0.5
     film_sos: NDArray[np.float64] | None = None
     additive: NDArray[np.float64] | None = None
 
@@ -441,9 +449,15 @@ def _lag_inverse(
     if not (chain.level_exponent and junction_k is not None):
         return gas, a, tap
     for _ in range(LEVEL_ITERATIONS):
-        # τ follows the film temperature, halfway between the junction and the gas: the
-        # implicit inverse by fixed-point steps from the constant-τ gas.
-        a = chain.poles(lagged.size, dt, 0.5 * (junction_k + _film_gas(chain, gas) + KELVIN))
+        # τ follows the film temperature, between the junction and the gas: the implicit
+        # inverse by fixed-point steps from the constant-τ gas.
+        lag_k = _film_gas(chain, gas) + KELVIN - junction_k
+        film_k = chain.film_weight * lag_k + (
+            junction_k
+            if chain.level_weight == 1.0
+            else chain.level_ref_k + chain.level_weight * (junction_k - chain.level_ref_k)
+        )
+        a = chain.poles(lagged.size, dt, film_k)
         gas, tap = _invert_lag(chain, lagged, a, junction_k)
     return gas, a, tap
 
@@ -601,7 +615,13 @@ def reading_from_gas(
     if chain.level_exponent:
         # τ follows the sensor's own temperature: the pole of each step from the state.
         base = replace(chain, level_exponent=0.0).poles(n, dt)
-        level = (chain.level_exponent, chain.level_ref_k, _film_gas(chain, seen))
+        level = (
+            chain.level_exponent,
+            chain.level_ref_k,
+            _film_gas(chain, seen),
+            chain.film_weight,
+            chain.level_weight,
+        )
         lagged = _lag_loop(seen, base, start, chain.r, chain.wall_k**4, level)
     elif chain.r == 0.0 and chain.factor is None:
         a = math.exp(-dt / chain.tau)
@@ -629,14 +649,14 @@ def _lag_loop(
     start: float,
     r: float,
     wall4: float,
-    level: tuple[float, float, NDArray[np.float64]] | None = None,
+    level: tuple[float, float, NDArray[np.float64], float, float] | None = None,
 ) -> NDArray[np.float64]:
     """Explicit recurrence y[k+1] = a y[k] + (1 - a)(u[k] - r ((y[k] + K)^4 - T_w^4)).
 
-    With ``level = (exponent, T_ref, film_drive)`` the pole of step k is
-    a_k^(1/(T/T_ref)^exponent) at the film temperature T, halfway between the state's
-    y[k] + K and the gas film_drive[k] + K (τ varying with the level), ``a`` then holding the
-    poles without that factor.
+    With ``level = (exponent, T_ref, film_drive, w, c)`` the pole of step k is
+    a_k^(1/(T/T_ref)^exponent) at the film temperature T = T_ref + c (y[k] + K − T_ref) +
+    w (film_drive[k] − y[k]) (τ varying with the level; :class:`SensorChain`'s level and film
+    weights), ``a`` then holding the poles without that factor.
     """
     # One loop per case, its constants in locals: the recurrence runs once per sample in
     # Python, for every free-run simulation of a radiating or level-dependent sensor.
@@ -644,12 +664,13 @@ def _lag_loop(
     append = out.append
     y = start
     offset = KELVIN
-    if level is not None:  # τ at the film temperature, halfway to the gas
-        exponent, reference = level[0], level[1]
-        half_offset = 0.5 * KELVIN
+    if level is not None:  # τ at the film temperature, between the state and the gas
+        exponent, reference, weight, own = level[0], level[1], level[3], level[4]
+        # T̄ + c (T − T̄) written so that c = 1 (the film) rounds as T itself does.
+        anchor = 0.0 if own == 1.0 else (1.0 - own) * reference
         for u, pole, film_u in zip(drive.tolist(), a.tolist(), level[2].tolist(), strict=True):
             kelvin = y + offset
-            film = 0.5 * (kelvin + film_u) + half_offset
+            film = (own * kelvin + anchor if anchor else kelvin) + weight * (film_u - y)
             # min(max(film / reference, 0.5), 2.0), as in SensorChain.poles (NaN kept)
             ratio = film / reference
             ratio = 0.5 if ratio < 0.5 else ratio

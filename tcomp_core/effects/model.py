@@ -473,6 +473,7 @@ class Model:
         params = self.params if params is None else params
         hooked: dict[str, tuple[Effect, ...]] = self._hooked  # type: ignore[attr-defined]
         has_level = self.has_level
+        shares = (1.0, 1.0)
         # The hooks that do not depend on the sensor, once for both.
         common: dict[str, Any] = {}
         for effect in hooked["tau_factor"]:
@@ -484,6 +485,8 @@ class Model:
             if exponent is not None:
                 common["level_exponent"] = exponent
                 common["level_ref_k"] = context.level_mean_c + KELVIN
+                common["level_weight"], common["film_weight"] = effect.level_weights(params)
+                shares = effect.level_shares(params)
                 common["film_sos"] = _film_filter(context.dt, context.film_cutoff_hz)
         chains = []
         for sensor in (1, 2):
@@ -505,6 +508,8 @@ class Model:
                 if conduction is not None:
                     values["fin_ml"], values["tau_p"], values["mode0"] = conduction
             values.update(common)
+            if shares[sensor - 1] != 1.0:
+                values["level_exponent"] = values["level_exponent"] * shares[sensor - 1]
             for effect in hooked["radiation"]:
                 radiation = effect.radiation(sensor, params, context)
                 if radiation is not None:
@@ -706,8 +711,10 @@ class Model:
                 f"{n_rows} usable samples are too few for {len(specs)} parameters"
             )
         fixed = {k: v for effect in self.instances for k, v in effect.fixed(context).items()}
-        # Settings (Effect.setting_choices) are neither searched nor measured: carried over.
-        setting_names = {n for e in self.instances for c in e.setting_choices for n in c}
+        # Settings (Effect.setting_choices, alternative_forms) are neither searched nor
+        # measured: carried over.
+        settings = [c for e in self.instances for c in (*e.setting_choices, *e.alternative_forms)]
+        setting_names = {name for choice in settings for name in choice}
         carried = (setting_names | hold) & self.params.keys()
         fixed = {**{n: self.params[n] for n in carried}, **fixed}
 

@@ -22,8 +22,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ..tolerance import class2_level_tolerance_c
-from .base import KELVIN, Effect, Evidence, FitContext, OutputEvidence, ParamSpec
+from .base import KELVIN, Effect, Evidence, FitContext, OutputEvidence, ParamSpec, level_not_fixed
 
 __all__ = [
     "MIN_RHO",
@@ -161,22 +160,10 @@ class Radiation(Effect):
                 "neither wire's radiative ratio rho is told from 0 (95 % intervals reach 0): "
                 "the data do not fix the radiation level, which stays first order's",
             )
-        if "calibration" in fit.effects:
-            return (
-                "dynamics",
-                "a calibration in the same model takes the sensors' level difference, the only "
-                "thing that fixes the radiation level: it stays first order's",
-            )
         share = sensor_level_difference_c(fit.params, fit.level_mean_c)
-        tolerance = class2_level_tolerance_c(fit.level_mean_c)
-        if not abs(share) > tolerance:
-            return (
-                "dynamics",
-                f"radiation's part of the sensors' level difference, {share:+.3g} degC at "
-                f"{fit.level_mean_c:.4g} degC, is within what IEC 60584 class 2 alone allows "
-                f"there ({tolerance:.2g} degC): the level correction would rest on the sensors' "
-                "tolerance, not on the data, and the level stays first order's",
-            )
+        why = level_not_fixed(fit, share, "the radiation level")
+        if why:
+            return "dynamics", why
         return "compensated", "the steady radiation error of each wire is removed"
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
