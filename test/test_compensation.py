@@ -261,6 +261,7 @@ def test_the_rules_say_how_each_effect_is_treated():
         (("delay",), {}, (), "prior"),
         (("conduction",), {}, (), "compensated"),
         (("property",), {}, ("property",), "first order"),
+        (("noise_ratio",), {}, (), "first order"),  # the default path measures it itself
     ]
     for effects, intervals, expected, handling in cases:
         params = radiating if effects == ("radiation",) else None
@@ -275,6 +276,7 @@ def test_the_rules_say_how_each_effect_is_treated():
     # effect its gain is part of that effect's fit and puts both sensors on tc1's scale.
     for others, expected, handling in (
         (("property",), ("property",), "first order"),
+        (("noise_ratio",), (), "first order"),
         (("conduction",), (), "dynamics"),
     ):
         diagnosis = _diagnosis_with(("calibration", *others), {}, expected)

@@ -384,7 +384,11 @@ def output_model_from_diagnosis(
         params=final.params,
         effects=tuple(final.effects),
         level_mean_c=diagnosis.context.level_mean_c,
-        ordinary=tuple(effect for effect in final.effects if effect in expected),
+        ordinary=tuple(
+            effect
+            for effect in final.effects
+            if effect in expected or EFFECTS[effect].default_path_covers
+        ),
         level_split_c=(
             math.nan if final.identification is None else final.identification.level_split_c
         ),

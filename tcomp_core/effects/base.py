@@ -149,8 +149,9 @@ class OutputEvidence:
     level_mean_c : float
         Mean temperature of the record's readings, degrees C (NaN when unknown).
     ordinary : tuple of str
-        Effects of the model that are the sensors' ordinary physics, left first order
-        (:attr:`tcomp_core.diagnose.Diagnosis.expected_physics`).
+        Effects of the model that are the sensors' ordinary physics
+        (:attr:`tcomp_core.diagnose.Diagnosis.expected_physics`) or that the default path
+        covers (:attr:`Effect.default_path_covers`), left first order.
     level_split_c : float
         The level difference the model's effects put between the two sensors' gas, degrees C
         (:func:`tcomp_core.diagnose.identification.level_split_c`; NaN when unknown): all the
@@ -196,6 +197,11 @@ class Effect:
     name: ClassVar[str] = ""
     #: One line: what is physically missing from the base model.
     summary: ClassVar[str] = ""
+    #: Whether the default first-order path already accounts for the effect by itself, with
+    #: nothing in the sensor chain to undo (the noise ratio: ml-eiv and the smoother measure
+    #: the noise). A compensated gas leaves it first order, and it counts as the sensors'
+    #: ordinary physics beside other effects (:attr:`OutputEvidence.ordinary`).
+    default_path_covers: ClassVar[bool] = False
     #: Other forms of the same physics, as settings carried in the parameters (one dict per
     #: form): the fit's own form is one reading of the literature, and the data cannot always
     #: tell them apart. The model is refitted in each (:mod:`tcomp_core.diagnose.
