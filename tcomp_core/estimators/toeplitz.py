@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,10 @@ __all__ = ["ToeplitzWhitening", "powers_minus_one"]
 _DIRECT_EXPONENT = 0.7
 #: Powers s^n beyond the direct ones are built as s^(B j) s^i: B = this many columns.
 _POWER_BLOCK = 64
+
+
+#: log of the smallest positive normal float: s² for a diagonal Σ (s = 0 in the limit).
+_LOG_SMALLEST = math.log(sys.float_info.min)
 
 
 def powers_minus_one(log_s: float, count: int) -> NDArray[np.float64]:
@@ -99,8 +104,12 @@ class ToeplitzWhitening:
         r1 = 0.5 * (diagonal + root)
         if not (math.isfinite(r1) and r1 > 0.0):
             raise EstimationError(f"ml-eiv: the noise covariance is singular (d = {diagonal})")
-        # s² = q = r2/r1 = 1 - root/r1.
-        return cls(r1, off_diagonal / r1, 0.5 * math.log1p(-root / r1), size)
+        # s² = q = r2/r1 = 1 - root/r1. A diagonal Σ (o = 0: a search's trial whose poles
+        # underflow) has q = 0, or a rounding below it: s is then the smallest positive q's
+        # root, which every power of it takes to 0 as the limit does.
+        share = root / r1
+        log_q = math.log1p(-share) if share < 1.0 else _LOG_SMALLEST
+        return cls(r1, off_diagonal / r1, 0.5 * log_q, size)
 
     @functools.cached_property
     def _powers(self) -> NDArray[np.float64]:
