@@ -666,6 +666,15 @@ def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
     )
     assert "--effects calibration" in str(info.value)
     assert "conduction to supports colder than the gas" in str(info.value)
+    # Where the diagnosis fitted both already, it does not send the user to run it again.
+    with pytest.raises(EstimationError, match=r"apart: the") as info:
+        fit_output_model(apart, None)
+    assert "--effects" not in str(info.value), str(info.value)
+    from tcomp_core.compensation.plan import _level_disagreement
+
+    searched = _level_disagreement(apart.tc1, apart.tc2, frozenset({"calibration", "conduction"}))
+    assert "the diagnosis fitted both and neither determines tau" in searched
+    assert "--effects" not in searched and "beyond IEC 60584 class 2" in searched
     # A record of two sensors in one gas is not refused by the same check.
     sim = simulate_effect(None, "multisine", duration=4.0, noise_percent=1.0, seed=3)
     good = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="good", dt=sim.dt)

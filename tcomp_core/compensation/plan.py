@@ -471,8 +471,14 @@ def _loose_taus(fit: ModelFit) -> list[str]:
     return loose
 
 
-def _level_disagreement(tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> str:
+def _level_disagreement(
+    tc1: NDArray[np.float64], tc2: NDArray[np.float64], tried: frozenset[str] = frozenset()
+) -> str:
     """The readings' difference in mean level when it lies beyond class 2, else ''.
+
+    ``tried``: the effects the diagnosis already fitted to the record; for those the advice
+    is not to run it again (strong conduction to constant supports, a thick wire reading 66 %
+    of the gas's swing, was told to compensate with the search that had just failed it).
 
     Two first-order lags of one gas read the same mean, so a difference beyond what two
     class-2 sensors may show (by :data:`~tcomp_core.tolerance.CLASS2_MARGIN`) is a calibration
@@ -485,11 +491,18 @@ def _level_disagreement(tc1: NDArray[np.float64], tc2: NDArray[np.float64]) -> s
     tolerance = class2_level_tolerance_c(level)
     if not abs(difference) > CLASS2_MARGIN * tolerance:
         return ""
+    searched = "calibration" in tried and "conduction" in tried
+    remedy = (
+        "the diagnosis fitted both and neither determines tau: check the probe's wiring and "
+        "supports"
+        if searched
+        else "correct one sensor's calibration, or compensate with --effects calibration or "
+        "--effects auto, and rerun"
+    )
     return (
         f"; the readings differ by {difference:+.3g} °C in mean level at {level:.4g} °C, "
-        f"beyond IEC 60584 class 2 ({tolerance:.2g} °C there): a calibration (correct one "
-        "sensor's, or compensate with --effects calibration) or conduction to supports colder "
-        "than the gas (compensate with --effects auto); rerun"
+        f"beyond IEC 60584 class 2 ({tolerance:.2g} °C there): a calibration or conduction to "
+        f"supports colder than the gas; {remedy}"
     )
 
 
@@ -505,7 +518,11 @@ def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
         f"{CLASS2_OFFSET_C:g} °C): correct "
         "one sensor's calibration and rerun"
         if {"gain", "offset_c"} <= found.keys()
-        else _level_disagreement(diagnosis.tc1, diagnosis.tc2)
+        else _level_disagreement(
+            diagnosis.tc1,
+            diagnosis.tc2,
+            frozenset(suspect.effect for suspect in diagnosis.suspects),
+        )
         or " (are both signals thermocouples in one gas?)"
     )
     raise EstimationError(
