@@ -239,6 +239,7 @@ def _diagnosis_with(
             at_bound=[],
         ),
         expected_physics=list(expected),
+        suspects=[],
         eval_cutoff_hz=50.0,
         identifiability=[],
         tc1=np.full(100, 300.0),  # one level: readings no calibration sets apart
