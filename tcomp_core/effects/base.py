@@ -22,7 +22,15 @@ from numpy.typing import NDArray
 
 from ..tolerance import class2_level_tolerance_c
 
-__all__ = ["KELVIN", "Effect", "Evidence", "FitContext", "OutputEvidence", "ParamSpec"]
+__all__ = [
+    "KELVIN",
+    "Effect",
+    "Evidence",
+    "FitContext",
+    "OutputEvidence",
+    "ParamSpec",
+    "level_not_fixed",
+]
 
 #: Offset between degrees Celsius and kelvin.
 KELVIN = 273.15

@@ -27,12 +27,11 @@ class NoiseRatio(Effect):
 
     name = "noise_ratio"
     summary = "the sensors' noise variances differ (phi from the spectra)"
+    default_path_covers = True
 
     def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
         """sigma_ratio = σ2/σ1 (dimensionless): φ = σ1²/σ2² = 0.16."""
         return {"sigma_ratio": 2.5}
-
-    default_path_covers = True
 
     def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         return (
