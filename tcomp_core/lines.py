@@ -23,6 +23,7 @@ carries them, for a reconstruction of the gas.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -342,6 +343,7 @@ def line_free_pair(
     return readings[0], readings[1]
 
 
+@functools.lru_cache(maxsize=64)
 def _band_noise_gain(dt: float, frequency: float) -> float:
     """The share of white noise's variance that :func:`_band` keeps at ``frequency`` (Hz).
 

@@ -267,7 +267,7 @@ class Evaluator:
         """
         chosen = Model(fit.effects, fit.params)
         held = frozenset(n for e in chosen.instances for n in e.output_error_params)
-        model = chosen.fit(*self._fit_inputs, hold=held)
+        model = self.refit_model(chosen, held)
         covariance = parameter_covariance(model, *self._fit_inputs)
         _, predicted = self._free_run(model)
         gas1, gas2 = model.reconstruct(*self.readings, self.context)
@@ -277,14 +277,18 @@ class Evaluator:
         # A piece undone for the dynamics only keeps first order's level, and an effect that
         # fits the level (a calibration) never publishes it: their change and band are
         # compared without their means, as the gas is published.
+        # The base model moves no sensor's level: nothing to split.
+        split_c = (
+            level_split_c(model, self.readings, self.context, self.scored_mask(model)[:-1])
+            if model.effects
+            else math.nan
+        )
         evidence = OutputEvidence(
             intervals=intervals,
             params=model.params,
             effects=model.effects,
             level_mean_c=self.context.level_mean_c,
-            level_split_c=level_split_c(
-                model, self.readings, self.context, self.scored_mask(model)[:-1]
-            ),
+            level_split_c=split_c,
         )
         level_free = any(
             effect.fits_level or effect.output_handling(evidence)[0] == "dynamics"
@@ -303,6 +307,7 @@ class Evaluator:
                 level_free=level_free,
                 published_taus=self.published_taus_s,
                 published_lines=self.published_lines,
+                level_split=split_c,
                 refit_form=None
                 if other_form is None
                 else lambda name, settings: other_form(fit, name, settings),

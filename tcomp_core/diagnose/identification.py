@@ -538,6 +538,7 @@ def identify(
     published_taus: tuple[float, float] | None = None,
     published_lines: Sequence[ForeignLine] = (),
     refit_form: Callable[[str, dict[str, float]], Model | None] | None = None,
+    level_split: float | None = None,
 ) -> Identification:
     """Check a fitted model's effect parameters and its gas band (see the module docstring).
 
@@ -576,6 +577,8 @@ def identify(
         form the settings give, or None when the held-out data rule that form out: the
         effects' other forms (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`) are
         tried with it and what they change in the gas joins the band. None: not tried.
+    level_split : float, optional
+        :func:`level_split_c` of the model when the caller has it already (degrees C).
     """
 
     def gas_of(fitted: Model) -> NDArray[np.float64]:
@@ -671,5 +674,7 @@ def identify(
         published_change_c=published_change_c,
         form_c=form_c,
         form_note=form_note,
-        level_split_c=level_split_c(model, readings, context, keep),
+        level_split_c=(
+            level_split_c(model, readings, context, keep) if level_split is None else level_split
+        ),
     )

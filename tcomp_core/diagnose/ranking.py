@@ -366,19 +366,12 @@ def fit_other_form(
     """
     start = Model(fit.effects, {**fit.params, **settings})
     effect = next(e for e in start.instances if e.name == effect_name)
-    others = frozenset(
-        n
-        for e in start.instances
-        if e.name != effect_name
-        for n in e.output_error_params
-        if n in start.params
-    )
     if effect.output_error_params:
         fitted = _output_error_fit(
             evaluator, start, effect.output_error_params, effect.output_error_coupled
         )
     else:
-        fitted = evaluator.fit(start, hold=others)
+        fitted = evaluator.fit(start, hold=_output_error_held(start))
     if beats_clearly(fit, evaluator.evaluate(fitted)):
         return None
     held = frozenset(n for e in fitted.instances for n in e.output_error_params)
