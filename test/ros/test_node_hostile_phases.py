@@ -66,6 +66,12 @@ def phase_samples(name, rate, seconds, start_s, state, rng):
     return time_s, tc1, tc2
 
 
+def _received_tc1(status) -> int:
+    """The ``received_tc1`` counter of a compensator status (0 when absent)."""
+    values = {item.key: item.value for item in status.values}
+    return int(values.get("received_tc1", 0))
+
+
 def test_the_node_survives_hostile_phases_as_its_own_process(ros_context, ros_domain_id):
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros_domain_id))
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -123,12 +129,21 @@ def test_the_node_survives_hostile_phases_as_its_own_process(ros_context, ros_do
                         message.header.frame_id = "probe"
                         message.temperature = float(value)
                         publishers[index].publish(message)
-                # Keep to the stamps' pace (the node's silence checks use wall time).
-                lag = (stamps[first] - stamps[0]) - (time.monotonic() - phase_started)
-                executor.spin_once(timeout_sec=max(0.0, lag))
+                # Keep to the stamps' pace (the node's silence checks use wall time): spin until
+                # the stamps' time, not once (a spin returns at the first gas message, and the
+                # phases went out 4x faster than their stamps, the node then behind them).
+                due = phase_started + (stamps[first] - stamps[0])
+                while (lag := due - time.monotonic()) > 0.0:
+                    executor.spin_once(timeout_sec=lag)
         feeding_ended = time.time()
-        for _ in range(200):  # the last reports
-            executor.spin_once(timeout_sec=0.02)
+        # The last reports: until the node has counted every reading sent (a fixed number of
+        # spins returned early on the gas messages, before the absurd phase was reported).
+        sent = sum(int(rate * seconds) for _, rate, seconds in PHASES)
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and not (
+            statuses and _received_tc1(statuses[-1][1]) >= sent
+        ):
+            executor.spin_once(timeout_sec=0.05)
         assert compensator.poll() is None, compensator.stderr.read()[-3000:]
     finally:
         executor.shutdown()
