@@ -55,12 +55,22 @@ contiguous stretch of the record out, warm-started at the fit): it measures how 
 moves when the data change, which a covariance from the curvature of the criterion cannot do for
 a model of the wrong form (on the effect simulator's radiation the sandwich covariance puts ρ's
 95 % interval at ±0.07 where fits on new noise spread by ±0.016), and it takes the model's
-nonlinearity as it is. Nor may the change be more than :data:`MAX_CHANGE_PER_EVIDENCE` times
-the **evidence**, the rms disagreement of the two sensors' first-order reconstructions (the
-smaller of those at the initial τ and at the fit's own: a τ far off inflates it, 245 °C rms on
-steps where the fit's own τ leave 9 °C): every correction is inferred from that disagreement,
-and a correction many times larger is carried by the model's form (a common part both sensors
-would share, which the two signals cannot see).
+nonlinearity as it is. It cannot do so for **local parameters**
+(:attr:`~tcomp_core.effects.base.Effect.local_parameters`: a varying speed's spline, each
+coefficient decided by a few seconds of the record): the refit without a stretch only
+interpolates them across it, and the jackknife counts that interpolation, n − 1 times over, as
+the fit's uncertainty (campaign draw 2244, the speed swinging ±23 % on a rotating disk: ±4.8 °C
+rms, ±4.3 of it from each stretch's own refit, against a change of 2.7 °C that took the gas
+10.6 → 1.8 % off; it was refused). With local parameters each stretch's variance comes from the
+refits that kept it (what the rest of the record does to τ), and the local parameters' own
+covariance adds theirs by the delta method: ±1.3 °C there.
+
+Nor may the change be more than :data:`MAX_CHANGE_PER_EVIDENCE` times the **evidence**, the
+rms disagreement of the two sensors' first-order reconstructions (the smaller of those at the
+initial τ and at the fit's own: a τ far off inflates it, 245 °C rms on steps where the fit's
+own τ leave 9 °C): every correction is inferred from that disagreement, and a correction many
+times larger is carried by the model's form (a common part both sensors would share, which the
+two signals cannot see).
 
 The **form** of an effect is one reading of the literature, and the data may not tell it from
 another (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`: a property's τ at the film
@@ -396,8 +406,13 @@ def _jackknife_band(
     n_rows: int,
     keep: NDArray[np.bool_],
     level_free: bool,
-) -> tuple[float, str]:
-    """The gas's 95 % half-width (rms) from delete-a-block refits, and why it is inf."""
+    local: bool = False,
+) -> tuple[NDArray[np.float64] | None, str]:
+    """The gas's variance from delete-a-block refits, shape (N - 1,), and why it is None.
+
+    With ``local`` parameters, each block's variance comes from the refits that kept it: the
+    refit without a block only interpolates its local parameters there.
+    """
     edges = np.linspace(0, n_rows, JACKKNIFE_BLOCKS + 1).astype(int)
     gases = []
     for start, stop in itertools.pairwise(edges):
@@ -406,16 +421,67 @@ def _jackknife_band(
         try:
             gas = gas_of(refit(rows))
         except (EstimationError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            return math.inf, f"a refit without samples {start}..{stop} failed: {exc}"
+            return None, f"a refit without samples {start}..{stop} failed: {exc}"
         if level_free:
             gas = gas - np.mean(gas[keep])
-        gases.append(gas[keep])
+        gases.append(gas)
     stacked = np.stack(gases)
-    if not np.all(np.isfinite(stacked)):
-        return math.inf, "a refit's gas is not finite"
-    count = len(gases)
-    variance = (count - 1) / count * np.sum((stacked - stacked.mean(axis=0)) ** 2, axis=0)
-    return Z95 * math.sqrt(float(np.mean(variance))), ""
+    if not np.all(np.isfinite(stacked[:, keep])):
+        return None, "a refit's gas is not finite"
+
+    def spread(values: NDArray[np.float64]) -> NDArray[np.float64]:
+        count = values.shape[0]
+        return (count - 1) / count * np.sum((values - values.mean(axis=0)) ** 2, axis=0)
+
+    if not local:
+        return spread(stacked), ""
+    variance = np.empty(n_rows)
+    for block, (start, stop) in enumerate(itertools.pairwise(edges)):
+        variance[start:stop] = spread(np.delete(stacked[:, start:stop], block, axis=0))
+    return variance, ""
+
+
+def _local_variance(
+    model: Model,
+    covariance: ParameterCovariance,
+    names: Sequence[str],
+    gas_of: Callable[[Model], NDArray[np.float64]],
+    keep: NDArray[np.bool_],
+    level_free: bool,
+) -> NDArray[np.float64] | None:
+    """The gas's variance from the covariance of the local parameters ``names``, shape (N - 1,).
+
+    The delta method with secants: each parameter stepped by ± its standard deviation (clipped
+    to its bounds), the gas's half difference D_j, and var(gas) = D R Dᵀ with R their
+    correlation. None when the covariance does not give it.
+    """
+    matrix = covariance.matrix
+    if matrix is None:
+        return None
+    index = [covariance.names.index(name) for name in names if name in covariance.names]
+    if not index:
+        return np.zeros(keep.size)
+    sub = matrix[np.ix_(index, index)]
+    sigma = np.sqrt(np.clip(np.diag(sub), 0.0, None))
+    columns = []
+    for position, deviation in zip(index, sigma, strict=True):
+        ends = []
+        for sign in (-1.0, 1.0):
+            params = dict(model.params)
+            stepped = covariance.x[position] + sign * deviation
+            low, high = covariance.lower[position], covariance.upper[position]
+            params[covariance.names[position]] = float(np.clip(stepped, low, high))
+            try:
+                ends.append(gas_of(Model(model.effects, params)))
+            except (EstimationError, ValueError, ArithmeticError):
+                return None
+        half = 0.5 * (ends[1] - ends[0])
+        columns.append(half - np.mean(half[keep]) if level_free else half)
+    steps = np.stack(columns, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = sub / np.outer(sigma, sigma)
+    correlation = np.where(np.isfinite(correlation), correlation, 0.0)
+    return np.clip(np.einsum("tj,jk,tk->t", steps, correlation, steps), 0.0, None)
 
 
 def _form_band(
@@ -614,7 +680,20 @@ def identify(
             Model((), {"tau1": published_taus[0], "tau2": published_taus[1]}), line_free, context
         )
         published_change_c = change_against(*published)
-    band_c, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free)
+    local = [
+        spec.name
+        for effect in model.instances
+        if effect.local_parameters
+        for spec in effect.specs(context)
+    ]
+    variance, band_note = _jackknife_band(gas_of, refit, keep.size, keep, level_free, bool(local))
+    if variance is not None and local:
+        local_variance = _local_variance(model, covariance, local, gas_of, keep, level_free)
+        if local_variance is None:
+            variance, band_note = None, "the covariance of the local parameters is singular"
+        else:
+            variance = variance + local_variance
+    band_c = math.inf if variance is None else Z95 * math.sqrt(float(np.mean(variance[keep])))
     form_c, form_note = 0.0, ""
     if refit_form is not None:
         form_c, smallest, form_note = _form_band(

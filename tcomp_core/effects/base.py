@@ -232,6 +232,12 @@ class Effect:
     #: Whether the effect's chain depends on the sample times (``FitContext.time``), so that it
     #: cannot be fitted on a stretch of the record alone.
     uses_sample_times: ClassVar[bool] = False
+    #: Whether each parameter is decided by one stretch of the record only (a spline's
+    #: coefficients). A refit without that stretch interpolates them, and a delete-a-block
+    #: jackknife would count that interpolation as the fit's uncertainty, n - 1 times over
+    #: (:func:`tcomp_core.diagnose.identification.identify` propagates their covariance
+    #: instead).
+    local_parameters: ClassVar[bool] = False
     #: How far a fit with this effect may move either τ from the first-order estimate (a factor,
     #: either way). The first-order τ absorbs what the effect does, so it is biased, but by a
     #: bounded amount for each effect; a fit beyond found no physical explanation and is

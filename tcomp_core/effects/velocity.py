@@ -58,6 +58,7 @@ class Velocity(Effect):
 
     name = "velocity"
     uses_sample_times = True
+    local_parameters = True
     summary = "a changing flow velocity scales both time constants together (spline of log s(t))"
     setting_choices = tuple({"velocity_smoothness": value} for value in SMOOTHNESS_CHOICES)
     simulation_forms = ("sine", "steps")
