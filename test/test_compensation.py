@@ -920,3 +920,34 @@ def test_a_varying_speed_is_applied_when_it_changes_the_gas_beyond_its_band():
         for m in (first, model)
     ]
     assert errors[1] < 0.8 * errors[0], errors
+
+
+def test_the_local_parameters_covariance_reaches_the_gas_by_the_delta_method():
+    """For a gas linear in the parameters the secants are exact: var = diag(A Σ Aᵀ)."""
+    from tcomp_core.diagnose.identification import _local_variance
+    from tcomp_core.diagnose.uncertainty import ParameterCovariance
+    from tcomp_core.effects import Model
+
+    rng = np.random.default_rng(3)
+    design = rng.standard_normal((50, 3))
+    root = rng.standard_normal((3, 3))
+    sigma = root @ root.T * 0.01
+    names = ("tau1", "velocity_1", "velocity_2")
+    x = np.array([math.log(0.05), 0.1, -0.2])
+    covariance = ParameterCovariance(
+        names, x, sigma, np.full(3, -5.0), np.full(3, 5.0), at_bound=()
+    )
+    model = Model((), {"tau1": 0.05, "tau2": 0.2, "velocity_1": 0.1, "velocity_2": -0.2})
+
+    def gas_of(fitted):
+        return design[:, 1:] @ np.array([fitted.params["velocity_1"], fitted.params["velocity_2"]])
+
+    keep = np.ones(50, dtype=bool)
+    local = _local_variance(model, covariance, names[1:], gas_of, keep, level_free=False)
+    part = design[:, 1:]
+    expected = np.einsum("tj,jk,tk->t", part, sigma[1:, 1:], part)
+    assert local == pytest.approx(expected)
+    # Without their means, as a level left first order's is compared.
+    free = _local_variance(model, covariance, names[1:], gas_of, keep, level_free=True)
+    centred = part - part.mean(axis=0)
+    assert free == pytest.approx(np.einsum("tj,jk,tk->t", centred, sigma[1:, 1:], centred))

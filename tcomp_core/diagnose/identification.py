@@ -690,7 +690,10 @@ def identify(
     if variance is not None and local:
         local_variance = _local_variance(model, covariance, local, gas_of, keep, level_free)
         if local_variance is None:
-            variance, band_note = None, "the covariance of the local parameters is singular"
+            variance = None
+            band_note = (
+                "the local parameters' covariance gives no band (singular, or a step failed)"
+            )
         else:
             variance = variance + local_variance
     band_c = math.inf if variance is None else Z95 * math.sqrt(float(np.mean(variance[keep])))
