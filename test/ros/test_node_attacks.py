@@ -102,7 +102,9 @@ def test_malformed_messages_are_counted_reported_and_skipped(harness):
     assert found["malformed_tc2"] == "0"
     assert level(status) in ("WARN", "ERROR", "STALE")
     assert "tc1:" in status.message and "bytes" in status.message
-    assert h.spin_until(h.executor, lambda: len(h.gas) >= data.tc1.size - 5, 10.0)
+    assert h.spin_until(h.executor, lambda: len(h.gas) >= data.tc1.size - 5, 10.0), (
+        f"{len(h.gas)} gas messages of {data.tc1.size} pairs; last: {h.last_summary()}"
+    )
     assert finite_gas(h)  # and the node kept going after them
 
 
