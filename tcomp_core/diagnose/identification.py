@@ -441,6 +441,11 @@ def _jackknife_band(
     return variance, ""
 
 
+def _from_search(name: str, value: float) -> float:
+    """A parameter's value from its search coordinate (the logarithm for a time constant)."""
+    return math.exp(value) if name.startswith("tau") else float(value)
+
+
 def _local_variance(
     model: Model,
     covariance: ParameterCovariance,
@@ -470,7 +475,8 @@ def _local_variance(
             params = dict(model.params)
             stepped = covariance.x[position] + sign * deviation
             low, high = covariance.lower[position], covariance.upper[position]
-            params[covariance.names[position]] = float(np.clip(stepped, low, high))
+            name = covariance.names[position]
+            params[name] = _from_search(name, float(np.clip(stepped, low, high)))
             try:
                 ends.append(gas_of(Model(model.effects, params)))
             except (EstimationError, ValueError, ArithmeticError):
@@ -556,7 +562,7 @@ def _valley_move(
         x = np.clip(covariance.x + sign * step, covariance.lower, covariance.upper)
         params = dict(model.params)
         for key, value in zip(covariance.names, x, strict=True):
-            params[key] = math.exp(value) if key.startswith("tau") else float(value)
+            params[key] = _from_search(key, value)
         try:
             ends.append(gas_of(Model(model.effects, params)))
         except (EstimationError, ValueError, ArithmeticError):

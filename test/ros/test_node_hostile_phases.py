@@ -19,6 +19,7 @@ import time
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from node_harness import values
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -64,12 +65,6 @@ def phase_samples(name, rate, seconds, start_s, state, rng):
     if name == "identical":
         tc2 = tc1.copy()
     return time_s, tc1, tc2
-
-
-def _received_tc1(status) -> int:
-    """The ``received_tc1`` counter of a compensator status (0 when absent)."""
-    values = {item.key: item.value for item in status.values}
-    return int(values.get("received_tc1", 0))
 
 
 def test_the_node_survives_hostile_phases_as_its_own_process(ros_context, ros_domain_id):
@@ -141,7 +136,7 @@ def test_the_node_survives_hostile_phases_as_its_own_process(ros_context, ros_do
         sent = sum(int(rate * seconds) for _, rate, seconds in PHASES)
         deadline = time.monotonic() + 20.0
         while time.monotonic() < deadline and not (
-            statuses and _received_tc1(statuses[-1][1]) >= sent
+            statuses and int(values(statuses[-1][1]).get("received_tc1", 0)) >= sent
         ):
             executor.spin_once(timeout_sec=0.05)
         assert compensator.poll() is None, compensator.stderr.read()[-3000:]
@@ -161,13 +156,13 @@ def test_the_node_survives_hostile_phases_as_its_own_process(ros_context, ros_do
     times = [t for t, _ in statuses if feeding_started <= t <= feeding_ended]
     gaps = np.diff([feeding_started, *times, feeding_ended])
     assert gaps.max() < MAX_SILENCE_S, gaps.max()
-    values = [{item.key: item.value for item in s.values} for _, s in statuses]
-    last = values[-1]
+    reports = [values(s) for _, s in statuses]
+    last = reports[-1]
     # The rate change was seen, counted and reported; the invalid readings counted.
     assert int(last["rate_changes"]) >= 1
     # At the new rate τ is right again (it came out 10x too long when the period stayed learnt).
     fast = [
-        v for v in values if v["sample_period_s"] != "nan" and float(v["sample_period_s"]) < 1e-3
+        v for v in reports if v["sample_period_s"] != "nan" and float(v["sample_period_s"]) < 1e-3
     ]
     assert fast, "no report at 2 kHz"
     assert float(fast[0]["sample_period_s"]) == pytest.approx(5e-4, rel=0.01)
