@@ -778,6 +778,27 @@ def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
     at_initial = identified(Model((), {"tau1": initial[0], "tau2": initial[1]}))
     assert found.evidence_c < 0.5 * at_initial.evidence_c  # the better τ's disagreement
 
+    # Both the fit's τ and the initial ones off (a degenerate first order, τ1 on its bound):
+    # the default path's τ, where first order describes the record, is the evidence.
+    wrong = Model((), {"tau1": 3.0 * truth[0], "tau2": 0.4 * truth[1]})
+    readings = (sim.tc1, sim.tc2)
+    without = identify(
+        wrong, covariance, initial, readings, context, lowpass, keep, lambda _: wrong
+    )
+    published = identify(
+        wrong,
+        covariance,
+        initial,
+        readings,
+        context,
+        lowpass,
+        keep,
+        lambda _: wrong,
+        published_taus=truth,
+    )
+    assert published.evidence_c < 0.2 * without.evidence_c
+    assert published.evidence_c == pytest.approx(found.evidence_c, rel=1e-6)
+
 
 @pytest.mark.parametrize(
     ("effects", "split_c", "handling"),

@@ -66,9 +66,13 @@ refits that kept it (what the rest of the record does to τ), and the local para
 covariance adds theirs by the delta method: ±1.3 °C there.
 
 Nor may the change be more than :data:`MAX_CHANGE_PER_EVIDENCE` times the **evidence**, the
-rms disagreement of the two sensors' first-order reconstructions (the smaller of those at the
-initial τ and at the fit's own: a τ far off inflates it, 245 °C rms on steps where the fit's
-own τ leave 9 °C): every correction is inferred from that disagreement, and a correction many
+rms disagreement of the two sensors' first-order reconstructions (the smallest of those at the
+initial τ, at the fit's own and at the default path's: a τ far off inflates it, 245 °C rms on
+steps where the fit's own τ leave 9 °C; on a step record with a mains line whose first-order
+fit put τ1 on its 6 s bound, a delay then fitted with the two τ in swapped order, 0.26 and
+0.007 s, left 112 °C at both its own and the initial τ, and 4.5 °C at the default path's,
+0.029 and 0.074 s: its change of 37 °C was the swap, and its gas 31 % off where the default
+path's was 5.8 %): every correction is inferred from that disagreement, and a correction many
 times larger is carried by the model's form (a common part both sensors would share, which the
 two signals cannot see).
 
@@ -254,9 +258,9 @@ class Identification:
         rms change the model's effects make to the gas against the first-order model at the
         fit's own τ, degrees C.
     evidence_c : float
-        rms disagreement of the two sensors' first-order reconstructions (the smaller of those
-        at the initial and at the fit's own τ), degrees C: all the data say about anything the
-        first-order model lacks.
+        rms disagreement of the two sensors' first-order reconstructions (the smallest of those
+        at the initial τ, the fit's own and the default path's when given), degrees C: all the
+        data say about anything the first-order model lacks.
     band_note : str
         Why the band is infinite ('' otherwise).
     form_c : float
@@ -637,7 +641,8 @@ def identify(
         order's, as for a calibration).
     published_taus : (float, float), optional
         τ1, τ2 the default first-order path publishes for the same record, s: the change is
-        measured against first order there too (:attr:`Identification.published_change_c`).
+        measured against first order there too (:attr:`Identification.published_change_c`),
+        and the sensors' disagreement there is one more measure of the evidence.
     published_lines : sequence of ForeignLine
         The lines the default path takes off the channel that carries one
         (:attr:`tcomp_core.estimators.Estimate.lines`): its first order is measured on readings
@@ -674,11 +679,7 @@ def identify(
         return change_against(*first_order((other.tau1, other.tau2)), of=gas_of(other))
 
     own = first_order((model.tau1, model.tau2))
-    disagreements = [lowpass(pair[0] - pair[1]) for pair in (own, first_order(base_taus))]
-    if level_free:
-        disagreements = [values - np.mean(values[keep]) for values in disagreements]
-    change_c = change_against(*own)  # at the fit's own τ: what its effects change
-    evidence_c = min(_rms(values, keep) for values in disagreements)
+    first_orders = [own, first_order(base_taus)]
     published_change_c = math.nan
     if published_taus is not None:  # as the default path publishes its gas: lines taken off
         line_free = line_free_pair(*readings, context.dt, published_lines, published_taus)
@@ -686,6 +687,12 @@ def identify(
             Model((), {"tau1": published_taus[0], "tau2": published_taus[1]}), line_free, context
         )
         published_change_c = change_against(*published)
+        first_orders.append(published)
+    disagreements = [lowpass(pair[0] - pair[1]) for pair in first_orders]
+    if level_free:
+        disagreements = [values - np.mean(values[keep]) for values in disagreements]
+    change_c = change_against(*own)  # at the fit's own τ: what its effects change
+    evidence_c = min(_rms(values, keep) for values in disagreements)
     local = [
         spec.name
         for effect in model.instances
