@@ -31,7 +31,7 @@ $(STAMP): setup.py setup.cfg package.xml
 PYTEST_WORKERS ?= auto
 PARALLEL := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 test: $(STAMP)
-	$(PARALLEL) $(PY) -m pytest -n $(PYTEST_WORKERS) --dist worksteal
+	$(PARALLEL) $(PY) -m pytest -n $(PYTEST_WORKERS) --dist worksteal --durations=30
 	@$(MAKE) --no-print-directory lint
 
 # The edit-test loop: the tests not marked slow (see the markers in pyproject.toml).
