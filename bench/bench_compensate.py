@@ -63,6 +63,7 @@ from tcomp_core.compensation import (
     default_first_order_failure,
     fit_output_model,
     output_model_from_diagnosis,
+    output_model_with_fallback,
 )
 from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import EVAL_FILTER_ORDER
@@ -134,7 +135,8 @@ def compare(
     lines = () if plain is None else plain.lines
     failure = default_first_order_failure(record, plain)
     diagnosis = diagnose(record, published_taus=plain_taus, published_lines=lines)
-    output = output_model_from_diagnosis(
+    output = output_model_with_fallback(
+        record,
         diagnosis,
         origin_s=float(record.time[0]),
         first_order_taus=plain_taus,

@@ -972,3 +972,68 @@ def test_the_local_parameters_covariance_reaches_the_gas_by_the_delta_method():
     free = _local_variance(model, covariance, names[1:], gas_of, keep, level_free=True)
     centred = part - part.mean(axis=0)
     assert free == pytest.approx(np.einsum("tj,jk,tk->t", centred, sigma[1:, 1:], centred))
+
+
+@pytest.mark.slow
+def test_a_refused_model_falls_back_to_the_longest_shorter_model_that_passes():
+    """One effect too many refuses the whole model; the staircase's shorter model, fitted
+    again and judged by the same rules, makes the gas, and the effect it leaves out says why
+    (a delay taken with a level-dependent τ it did not have was refused, 31 % off, where the
+    delay alone applies). Here the full fit's refusal is forced (its band set 100 times its
+    change); the shorter model is the real refit."""
+    from tcomp_core.compensation import (
+        default_estimate,
+        default_first_order_failure,
+        output_model_from_diagnosis,
+        output_model_with_fallback,
+    )
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.io import Record
+
+    sim = simulate_effect(
+        "delay", "multisine", duration=4.0, noise_percent=1.0, seed=3, params={"delay_s": 0.004}
+    )
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source="x", dt=sim.dt)
+    plain = default_estimate(record)
+    taus = (float(plain.tau1), float(plain.tau2))
+    options = {
+        "first_order_taus": taus,
+        "first_order_lines": plain.lines,
+        "first_order_failure": default_first_order_failure(record, plain),
+    }
+    fitted = fit_effects(record, ("delay", "velocity"), published_taus=taus)
+    found = fitted.final.identification
+    refused_final = replace(
+        fitted.final, identification=replace(found, band_c=100.0 * found.change_c)
+    )
+    forced = replace(fitted, final=refused_final, steps=[*fitted.steps[:-1], refused_final])
+    full = output_model_from_diagnosis(forced, **options)
+    assert full.refusal and full.applied() == ()
+
+    model = output_model_with_fallback(record, forced, **options)
+    assert model.applied() == ("delay",)
+    assert model.effects == ("delay", "velocity")
+    left = model.pieces[-1]
+    assert (left.effect, left.handling) == ("velocity", "first order")
+    assert "delay+velocity, is refused" in left.reason and "band" in left.reason
+    alone = fit_effects(record, ("delay",), published_taus=taus).final
+    assert (model.tau1, model.tau2) == pytest.approx((alone.tau1, alone.tau2), rel=1e-9)
+
+    band = signal.butter(4, 30.0, fs=1.0 / sim.dt, output="sos")  # as issue 24 scores it
+
+    def error(output):
+        gas = compensate(output, record.time, record.tc1, record.tc2, record.dt).gas
+        count = min(gas.size, sim.gas.size)
+        truth, found = (signal.sosfiltfilt(band, x[:count]) for x in (sim.gas, gas))
+        return reconstruction_error_percent(truth[200:-200], found[200:-200])
+
+    assert error(model) < 0.5 * error(full)  # the delay's gas beats the default path's
+
+    # A model of one effect has no shorter model: its refusal stands.
+    single = fit_effects(record, ("velocity",), published_taus=taus)
+    lone = replace(
+        single.final,
+        identification=replace(single.final.identification, band_c=math.inf),
+    )
+    single = replace(single, final=lone, steps=[*single.steps[:-1], lone])
+    assert output_model_with_fallback(record, single, **options).refusal

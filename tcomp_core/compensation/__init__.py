@@ -18,6 +18,7 @@ from .plan import (
     default_taus,
     fit_output_model,
     output_model_from_diagnosis,
+    output_model_with_fallback,
     parse_compensate_effects,
 )
 
@@ -34,5 +35,6 @@ __all__ = [
     "fit_output_model",
     "level_shift_c",
     "output_model_from_diagnosis",
+    "output_model_with_fallback",
     "parse_compensate_effects",
 ]

@@ -32,6 +32,7 @@ from ..compensation import (
     default_estimate,
     default_first_order_failure,
     output_model_from_diagnosis,
+    output_model_with_fallback,
 )
 from ..io import Record
 from ..workers import JobRunner, ProcessRunner
@@ -114,15 +115,18 @@ def run_job(
             if find_suspect:
                 suspects = diagnose(record, max_effects=1).suspects
                 suspect = next((item for item in suspects if item.significant), None)
-        model = (
-            output_model_from_diagnosis(
-                fitted,
-                first_order_taus=published,
-                first_order_failure=default_first_order_failure(record, plain),
+        model = None
+        if output:
+            failure = default_first_order_failure(record, plain)
+            model = (
+                output_model_with_fallback(
+                    record, fitted, first_order_taus=published, first_order_failure=failure
+                )
+                if effects is None
+                else output_model_from_diagnosis(
+                    fitted, first_order_taus=published, first_order_failure=failure
+                )
             )
-            if output
-            else None
-        )
     except Exception as exc:  # the caller must learn of any failure, not lose its worker
         return {"error": f"{type(exc).__name__}: {exc}"}
     result = {
