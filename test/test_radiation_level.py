@@ -64,3 +64,32 @@ def test_ratios_not_told_from_zero_leave_the_level_first_orders():
         level_mean_c=600.0,
     )
     assert Radiation().output_handling(fit)[0] == "dynamics"
+
+
+@pytest.mark.parametrize(
+    ("rho1", "rho2", "gain", "handling"),
+    [
+        (0.0336, 0.0303, None, "first order"),  # +0.32 %: a clean pair, tc1 0.27 % high
+        (0.0193, 0.0274, None, "first order"),  # -0.79 %: a clean pair, tc1 0.66 % high
+        (0.0608, 0.1024, None, "dynamics"),  # -3.8 %: radiation to a lagging wall
+        (0.0096, 0.0214, 0.9857, "dynamics"),  # -1.2 % by radiation, -2.6 % with the gain
+        (0.0096, 0.0214, 1.0060, "first order"),  # the calibration takes the gain back
+    ],
+)
+def test_radiation_within_class_2_in_level_and_gain_leaves_the_gas_first_orders(
+    rho1, rho2, gain, handling
+):
+    """A relative gain within class 2 (with the fit's margin) is the sensors' own: radiation
+    fitted to it undoes nothing (the ratios and gains of seen campaign draws)."""
+    fit = _fit(rho1, rho2, wall_c=190.0, level_c=200.0)  # a wall near the gas: level not fixed
+    if gain is not None:
+        fit = OutputEvidence(
+            intervals=fit.intervals,
+            params={**fit.params, "gain": gain},
+            effects=("radiation", "calibration"),
+            level_mean_c=200.0,
+        )
+    got, reason = Radiation().output_handling(fit)
+    assert got == handling, reason
+    if handling == "first order":
+        assert "class-2" in reason and "%" in reason

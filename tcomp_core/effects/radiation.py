@@ -22,12 +22,14 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from ..tolerance import CLASS2_GAIN, CLASS2_MARGIN
 from .base import KELVIN, Effect, Evidence, FitContext, OutputEvidence, ParamSpec, level_not_fixed
 
 __all__ = [
     "MIN_RHO",
     "Radiation",
     "air_conductivity",
+    "gain_within_class2",
     "max_radiation_ratio",
     "sensor_level_difference_c",
 ]
@@ -87,6 +89,32 @@ def sensor_level_difference_c(params: Mapping[str, float], level_mean_c: float) 
     return float((params[f"rho{slow}"] - params[f"rho{fast}"]) * loss)
 
 
+def gain_within_class2(params: Mapping[str, float]) -> str:
+    """Why radiation's dynamics rest on the sensors' calibration, or '' when they do not.
+
+    Linearised, radiation makes each wire read the gas's swing times 1/(1 + ρi): tc2 reads
+    (1 + ρ1)/(1 + ρ2) of tc1's swing, times a calibration's ``gain`` in the same model. The
+    correction of the swing (about ρ̄ of it) is inferred from that relative gain, and two
+    IEC 60584 class-2 sensors differ in gain by up to :data:`~tcomp_core.tolerance.CLASS2_GAIN`
+    by themselves; within :data:`~tcomp_core.tolerance.CLASS2_MARGIN` times that (the fit's
+    resolution of a gain, as a calibration is judged) the gain is the sensors' own and nothing
+    radiates that the data show. Two clean step records whose tc1 read 0.27 % and 0.66 % high
+    were called radiation at 0.32 % and 0.79 % and compensated, their gas 0.61 → 3.18 % and
+    1.19 → 2.79 % off; the five radiating draws compensated better than first order lay at
+    2.6-4.9 %.
+    """
+    ratio = (1.0 + params["rho1"]) / (1.0 + params["rho2"]) * params.get("gain", 1.0)
+    limit = CLASS2_MARGIN * CLASS2_GAIN
+    if abs(ratio - 1.0) > limit:
+        return ""
+    return (
+        f"the relative gain of the sensors that radiation implies, {100.0 * (ratio - 1.0):+.3g} "
+        f"%, is within what two IEC 60584 class-2 sensors may differ by ({100.0 * limit:.3g} "
+        "% with the fit's margin): the correction of the swing would rest on their "
+        "calibration, not on the data, and the gas is first order's"
+    )
+
+
 def max_radiation_ratio(tau_s: float, mean_c: float) -> float:
     """Largest radiative/convective conductance ratio ρ = 4 ε σ T̄³/h physics allows.
 
@@ -118,7 +146,9 @@ class Radiation(Effect):
     sensors may differ by anyway. The level correction is that difference over ρs/ρf − 1, so
     within the tolerance it rests on the sensors' calibration, not on the data (a hot record
     with a lagging wall, compensated as radiation beside a calibration, had its gas moved
-    6 °C off: 5.5 → 6.4 %).
+    6 °C off: 5.5 → 6.4 %). Where the level is not fixed and the relative gain radiation
+    implies between the sensors is within class 2 as well (:func:`gain_within_class2`),
+    nothing is undone: ``first order``.
     """
 
     name = "radiation"
@@ -155,16 +185,19 @@ class Radiation(Effect):
     def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         lows = [fit.intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
         if max(lows) <= 0.0:
-            return (
-                "dynamics",
+            why = (
                 "neither wire's radiative ratio rho is told from 0 (95 % intervals reach 0): "
-                "the data do not fix the radiation level, which stays first order's",
+                "the data do not fix the radiation level, which stays first order's"
             )
-        share = sensor_level_difference_c(fit.params, fit.level_mean_c)
-        why = level_not_fixed(fit, share, "the radiation level")
-        if why:
-            return "dynamics", why
-        return "compensated", "the steady radiation error of each wire is removed"
+        else:
+            share = sensor_level_difference_c(fit.params, fit.level_mean_c)
+            why = level_not_fixed(fit, share, "the radiation level")
+            if not why:
+                return "compensated", "the steady radiation error of each wire is removed"
+        within = gain_within_class2(fit.params)
+        if within:
+            return "first order", within
+        return "dynamics", why
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         # Physical bounds: emissivity <= 1 with the weakest convection the base τ allows, and
