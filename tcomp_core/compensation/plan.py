@@ -39,7 +39,7 @@ disagreement (the only evidence of what first order lacks), or when the 95 % ban
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -694,17 +694,14 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
     plain = default_estimate(record)
     taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
     lines = () if plain is None else plain.lines
+    judged: Callable[..., OutputModel] = output_model_from_diagnosis
     if effects is None:
-        return output_model_with_fallback(
-            record,
-            diagnose(record, published_taus=taus, published_lines=lines),
-            origin_s=float(record.time[0]),
-            first_order_taus=taus,
-            first_order_lines=lines,
-            first_order_failure=default_first_order_failure(record, plain),
-        )
-    return output_model_from_diagnosis(
-        fit_effects(record, effects, published_taus=taus, published_lines=lines),
+        diagnosis = diagnose(record, published_taus=taus, published_lines=lines)
+        judged = partial(output_model_with_fallback, record)
+    else:
+        diagnosis = fit_effects(record, effects, published_taus=taus, published_lines=lines)
+    return judged(
+        diagnosis,
         origin_s=float(record.time[0]),
         first_order_taus=taus,
         first_order_lines=lines,

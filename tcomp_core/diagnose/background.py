@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import math
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,7 @@ from numpy.typing import ArrayLike
 
 from ..choices import parse_effect_list
 from ..compensation import (
+    OutputModel,
     default_estimate,
     default_first_order_failure,
     output_model_from_diagnosis,
@@ -115,18 +117,20 @@ def run_job(
             if find_suspect:
                 suspects = diagnose(record, max_effects=1).suspects
                 suspect = next((item for item in suspects if item.significant), None)
-        model = None
-        if output:
-            failure = default_first_order_failure(record, plain)
-            model = (
-                output_model_with_fallback(
-                    record, fitted, first_order_taus=published, first_order_failure=failure
-                )
-                if effects is None
-                else output_model_from_diagnosis(
-                    fitted, first_order_taus=published, first_order_failure=failure
-                )
+        judged: Callable[..., OutputModel] = (
+            partial(output_model_with_fallback, record)
+            if effects is None
+            else output_model_from_diagnosis
+        )
+        model = (
+            judged(
+                fitted,
+                first_order_taus=published,
+                first_order_failure=default_first_order_failure(record, plain),
             )
+            if output
+            else None
+        )
     except Exception as exc:  # the caller must learn of any failure, not lose its worker
         return {"error": f"{type(exc).__name__}: {exc}"}
     result = {
