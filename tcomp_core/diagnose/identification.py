@@ -462,9 +462,14 @@ def _local_variance(
 
     The delta method with secants: each parameter stepped by ± its standard deviation (clipped
     to its bounds), the gas's half difference D_j, and var(gas) = D R Dᵀ with R their
-    correlation. None when the covariance does not give it.
+    correlation. The covariance is the noise floor's
+    (:attr:`~tcomp_core.diagnose.uncertainty.ParameterCovariance.noise_matrix`) where there is
+    one: the lines a misfit leaves at the signal's frequencies are no noise, and counted as
+    noise they put a varying speed's band 3-5 times wider than fits on new noise spread; the
+    misfit is the refits' to show (:func:`_jackknife_band`). None when the covariance does not
+    give it.
     """
-    matrix = covariance.matrix
+    matrix = covariance.matrix if covariance.noise_matrix is None else covariance.noise_matrix
     if matrix is None:
         return None
     index = [covariance.names.index(name) for name in names if name in covariance.names]
