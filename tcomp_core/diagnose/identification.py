@@ -67,7 +67,9 @@ covariance adds theirs by the delta method: ±1.3 °C there.
 
 Nor may the change be more than :data:`MAX_CHANGE_PER_EVIDENCE` times the **evidence**, the
 rms disagreement of the two sensors' first-order reconstructions (the smallest of those at the
-initial τ, at the fit's own and at the default path's: a τ far off inflates it, 245 °C rms on
+initial τ, unless an effect of the model hides there
+(:attr:`~tcomp_core.effects.base.Effect.evidence_at_start`: a delay), at the fit's own and at
+the default path's: a τ far off inflates it, 245 °C rms on
 steps where the fit's own τ leave 9 °C; on a step record with a mains line whose first-order
 fit put τ1 on its 6 s bound, a delay then fitted with the two τ in swapped order, 0.26 and
 0.007 s, left 112 °C at both its own and the initial τ, and 4.5 °C at the default path's,
@@ -259,8 +261,8 @@ class Identification:
         fit's own τ, degrees C.
     evidence_c : float
         rms disagreement of the two sensors' first-order reconstructions (the smallest of those
-        at the initial τ, the fit's own and the default path's when given), degrees C: all the
-        data say about anything the first-order model lacks.
+        at the initial τ unless an effect hides there, the fit's own and the default path's
+        when given), degrees C: all the data say about anything the first-order model lacks.
     band_note : str
         Why the band is infinite ('' otherwise).
     form_c : float
@@ -684,7 +686,9 @@ def identify(
         return change_against(*first_order((other.tau1, other.tau2)), of=gas_of(other))
 
     own = first_order((model.tau1, model.tau2))
-    first_orders = [own, first_order(base_taus)]
+    first_orders = [own]
+    if all(effect.evidence_at_start for effect in model.instances):
+        first_orders.append(first_order(base_taus))
     published_change_c = math.nan
     if published_taus is not None:  # as the default path publishes its gas: lines taken off
         line_free = line_free_pair(*readings, context.dt, published_lines, published_taus)

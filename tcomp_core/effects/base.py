@@ -238,6 +238,11 @@ class Effect:
     #: (:func:`tcomp_core.diagnose.identification.identify` propagates their covariance
     #: instead).
     local_parameters: ClassVar[bool] = False
+    #: Whether the sensors' disagreement at the closed-form first-order start counts as
+    #: evidence for the effect's correction (:func:`tcomp_core.diagnose.identification.
+    #: identify`). An effect that such a start absorbs by bending τ (a delay) sets it False and
+    #: says why: the disagreement there hides what the effect corrects.
+    evidence_at_start: ClassVar[bool] = True
     #: How far a fit with this effect may move either τ from the first-order estimate (a factor,
     #: either way). The first-order τ absorbs what the effect does, so it is biased, but by a
     #: bounded amount for each effect; a fit beyond found no physical explanation and is
