@@ -1037,3 +1037,32 @@ def test_a_refused_model_falls_back_to_the_longest_shorter_model_that_passes():
     )
     single = replace(single, final=lone, steps=[*single.steps[:-1], lone])
     assert output_model_with_fallback(record, single, **options).refusal
+
+
+def test_a_fit_that_swaps_which_sensor_is_the_slower_is_no_physical_sensor():
+    """Which wire is the slower no effect changes: a fit whose τ put the other sensor slower
+    than the default path's do (by more than ORDER_RATIO both) makes no gas; the same fit
+    judged against τ of its own order does."""
+    from tcomp_core.compensation import output_model_from_diagnosis, swapped_sensors
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.io import Record
+
+    # The campaign's spurious delays: τ1 0.21 s, τ2 8 ms against the default's 23 and 100 ms.
+    assert "tc1" in swapped_sensors((0.21, 0.008), (0.023, 0.0996))
+    assert "tc2" in swapped_sensors((0.008, 0.21), (0.0996, 0.023))
+    assert swapped_sensors((0.058, 0.155), (0.037, 0.112)) == ""  # a delay's bent τ, same order
+    assert swapped_sensors((0.10, 0.09), (0.05, 0.14)) == ""  # the fit's order undecided
+    assert swapped_sensors((0.21, 0.008), (0.09, 0.10)) == ""  # the default's order undecided
+
+    sim = simulate_effect(
+        "delay", "multisine", duration=4.0, noise_percent=1.0, seed=3, params={"delay_s": 0.004}
+    )
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source="x", dt=sim.dt)
+    fitted = fit_effects(record, ("delay",))
+    taus = (float(fitted.final.tau1), float(fitted.final.tau2))
+    kept = output_model_from_diagnosis(fitted, first_order_taus=taus)
+    assert kept.applied() == ("delay",), kept.describe()
+    swapped = output_model_from_diagnosis(fitted, first_order_taus=taus[::-1])
+    assert swapped.applied() == ()
+    assert "which wire is the slower" in swapped.refusal
+    assert (swapped.tau1, swapped.tau2) == taus[::-1]  # the gas on the default path's τ

@@ -20,6 +20,7 @@ from .plan import (
     output_model_from_diagnosis,
     output_model_with_fallback,
     parse_compensate_effects,
+    swapped_sensors,
 )
 
 __all__ = [
@@ -37,4 +38,5 @@ __all__ = [
     "output_model_from_diagnosis",
     "output_model_with_fallback",
     "parse_compensate_effects",
+    "swapped_sensors",
 ]

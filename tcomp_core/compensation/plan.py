@@ -79,6 +79,7 @@ __all__ = [
     "output_model_from_diagnosis",
     "output_model_with_fallback",
     "parse_compensate_effects",
+    "swapped_sensors",
 ]
 
 #: ``OutputModel.name`` of the plain first-order model.
@@ -86,6 +87,9 @@ FIRST_ORDER = "first-order"
 #: A first-order τ whose 95 % interval spans more than this factor is not determined: pure
 #: noise gives 0.004..8 s, two sensors in one gas at K = 60 % a factor of 2.
 MAX_TAU_INTERVAL_RATIO = 10.0
+
+#: Time constants closer than this factor leave undecided which sensor is the slower.
+ORDER_RATIO = 1.5
 
 #: Handlings that undo an effect with all its fitted parameters: none of them may be free
 #: (:attr:`~tcomp_core.diagnose.identification.ParameterCheck.free`).
@@ -400,7 +404,9 @@ def output_model_from_diagnosis(
     )
     pieces = tuple(_piece(effect, effect in expected, evidence) for effect in final.effects)
     pieces = _lines_the_default_takes_off(pieces, params, first_order_lines)
-    refusal = _refusal(final, pieces, base_taus, diagnosis.context.dt, first_order_failure)
+    refusal = _refusal(
+        final, pieces, base_taus, diagnosis.context.dt, first_order_failure, first_order_taus
+    )
     if loose and not refusal:
         refusal = f"the fit does not determine the time constants ({'; '.join(loose)})"
     if refusal:  # not trusted with the gas: every piece first order, on first order's tau
@@ -596,21 +602,54 @@ def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
     )
 
 
+def swapped_sensors(taus: tuple[float, float], published_taus: tuple[float, float]) -> str:
+    """Why ``taus`` make the other sensor the slower one than ``published_taus`` do ('' if not).
+
+    Which sensor is the slower is its wire's (diameter, junction), and no effect swaps it; the
+    default path's τ (ml-eiv with the sensors' gain) tell it where they differ by more than
+    :data:`ORDER_RATIO`. A fit that puts it the other way round by as much has traded the lag
+    for something else: on steps with a mains line a delay of 0.27-0.54 s was fitted with
+    τ1 and τ2 swapped around it four times in 370 campaign draws (2513, 2691, 2753, 2758), and
+    applied it made the gas 7.6 → 29.7 % and 1.6 → 30.3 % off; no other fit in them swapped
+    the order.
+    """
+    fitted, published = taus[0] / taus[1], published_taus[0] / published_taus[1]
+    if not (math.isfinite(fitted) and math.isfinite(published)):
+        return ""
+    if min(fitted, 1.0 / fitted) > 1.0 / ORDER_RATIO or min(published, 1.0 / published) > (
+        1.0 / ORDER_RATIO
+    ):
+        return ""
+    if (fitted > 1.0) == (published > 1.0):
+        return ""
+    return (
+        f"tau1/tau2 = {taus[0]:.3g}/{taus[1]:.3g} s make tc{1 if fitted > 1.0 else 2} the "
+        f"slower sensor, where the default path's {published_taus[0]:.3g}/"
+        f"{published_taus[1]:.3g} s make it tc{1 if published > 1.0 else 2}: which wire is "
+        "the slower no effect changes"
+    )
+
+
 def _refusal(
     final: ModelFit,
     pieces: tuple[Piece, ...],
     base_taus: tuple[float, float],
     dt: float,
     first_order_failure: str = "",
+    published_taus: tuple[float, float] | None = None,
 ) -> str:
     """Why a fit may not make the gas ('' when it may).
 
-    It may not when it is no physical sensor, when a parameter of an applied effect is not
-    pinned down by the data, or when its change to the gas is within its own uncertainty:
-    the change its effects make, or, where the default first order fails the record
+    It may not when it is no physical sensor (:meth:`~tcomp_core.effects.Model.implausible`,
+    or a fit that swaps which sensor is the slower against ``published_taus``, the default
+    path's τ: :func:`swapped_sensors`), when a parameter of an applied effect is not pinned
+    down by the data, or when its change to the gas is within its own uncertainty: the
+    change its effects make, or, where the default first order fails the record
     (``first_order_failure``), the change against the default path's gas.
     """
     implausible = Model(tuple(final.effects), dict(final.params)).implausible(base_taus, dt)
+    if not implausible and published_taus is not None and final.effects:
+        implausible = swapped_sensors((float(final.tau1), float(final.tau2)), published_taus)
     if implausible:
         return f"the fit is no physical sensor: {implausible}"
     found = final.identification
