@@ -608,7 +608,7 @@ def swapped_sensors(taus: tuple[float, float], published_taus: tuple[float, floa
     Which sensor is the slower is its wire's (diameter, junction), and no effect swaps it; the
     default path's τ (ml-eiv with the sensors' gain) tell it where they differ by more than
     :data:`ORDER_RATIO`. A fit that puts it the other way round by as much has traded the lag
-    for something else. The final fits of 10 of 370 campaign draws did, every one on steps with
+    for something else. The final fits of 10 of 640 campaign draws did, every one on steps with
     a mains line or strong conduction and none to the gas's good: on four a delay (0.27 and
     0.54 s on the two looked at) with τ1 and τ2 swapped around it (2513, 2691, 2753, 2758),
     which applied made the gas 7.6 → 29.7 % and 1.6 → 30.3 % off; the other six had τ1 on its
