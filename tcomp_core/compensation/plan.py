@@ -611,7 +611,7 @@ def swapped_sensors(taus: tuple[float, float], published_taus: tuple[float, floa
     for something else. The final fits of 10 of 640 campaign draws did, every one on steps with
     a mains line or strong conduction and none to the gas's good: on four a delay (0.27 and
     0.54 s on the two looked at) with τ1 and τ2 swapped around it (2513, 2691, 2753, 2758),
-    which applied made the gas 7.6 → 29.7 % and 1.6 → 30.3 % off; the other six had τ1 on its
+    which applied made the gas 7.6 → 29.7 % and 1.6 → 30.3 % off; the other six had a τ on a
     bound and were refused anyway.
     """
     fitted, published = taus[0] / taus[1], published_taus[0] / published_taus[1]
