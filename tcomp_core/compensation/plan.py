@@ -615,13 +615,11 @@ def swapped_sensors(taus: tuple[float, float], published_taus: tuple[float, floa
     bound and were refused anyway.
     """
     fitted, published = taus[0] / taus[1], published_taus[0] / published_taus[1]
-    if not (math.isfinite(fitted) and math.isfinite(published)):
+    if not (0.0 < fitted < math.inf and 0.0 < published < math.inf):
         return ""
-    if min(fitted, 1.0 / fitted) > 1.0 / ORDER_RATIO or min(published, 1.0 / published) > (
-        1.0 / ORDER_RATIO
-    ):
-        return ""
-    if (fitted > 1.0) == (published > 1.0):
+    # log > 0: tc1 the slower; each order decided only beyond ORDER_RATIO.
+    orders = (math.log(fitted), math.log(published))
+    if min(abs(order) for order in orders) < math.log(ORDER_RATIO) or orders[0] * orders[1] > 0:
         return ""
     return (
         f"tau1/tau2 = {taus[0]:.3g}/{taus[1]:.3g} s make tc{1 if fitted > 1.0 else 2} the "

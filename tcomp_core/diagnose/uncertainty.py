@@ -92,14 +92,14 @@ def _noise_floor(periodogram: NDArray[np.float64], n: int) -> NDArray[np.float64
     return ndimage.median_filter(periodogram, size=window, mode="mirror") / _MEDIAN_OVER_MEAN
 
 
-def _meat(jacobian: NDArray[np.float64], spectrum: NDArray[np.float64]) -> NDArray[np.float64]:
+def _meat(
+    transform: NDArray[np.complex128], spectrum: NDArray[np.float64], n: int
+) -> NDArray[np.float64]:
     """B = Jᵀ Σ J with Σ the stationary covariance of the residuals' ``spectrum``.
 
-    ``spectrum`` is one-sided, shape (n // 2 + 1,), in the periodogram's units (|DFT|²/n);
-    ``jacobian`` shape (n, P).
+    ``transform`` is the Jacobian's rfft along its n rows, shape (n // 2 + 1, P);
+    ``spectrum`` is one-sided, shape (n // 2 + 1,), in the periodogram's units (|DFT|²/n).
     """
-    n = jacobian.shape[0]
-    transform = np.fft.rfft(jacobian, axis=0)
     weights = np.full(spectrum.size, 2.0)  # one-sided: every bin but 0 (and n/2) twice
     weights[0] = 1.0
     if n % 2 == 0:
@@ -215,6 +215,7 @@ def parameter_covariance(
     except np.linalg.LinAlgError:
         return ParameterCovariance(names, x, None, problem.lower, problem.upper, at_bound)
     periodogram = _periodogram(residuals[:n])
+    transform = np.fft.rfft(jacobian[:n], axis=0)  # once, for both spectra
     priors = jacobian[n:].T @ jacobian[n:]
 
     def sandwich(meat: NDArray[np.float64]) -> NDArray[np.float64] | None:
@@ -224,11 +225,11 @@ def parameter_covariance(
     return ParameterCovariance(
         names,
         x,
-        sandwich(_meat(jacobian[:n], _smoothed(periodogram, n)) + priors),
+        sandwich(_meat(transform, _smoothed(periodogram, n), n) + priors),
         problem.lower,
         problem.upper,
         at_bound,
-        noise_matrix=sandwich(_meat(jacobian[:n], _noise_floor(periodogram, n))),
+        noise_matrix=sandwich(_meat(transform, _noise_floor(periodogram, n), n)),
     )
 
 
