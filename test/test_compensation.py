@@ -483,7 +483,8 @@ def test_the_default_first_order_fails_a_record_by_its_dynamics_not_its_calibrat
 
 def test_the_change_against_the_published_first_order_is_measured_like_the_effects_change():
     """Against first order at the fit's own τ it is the effects' change; against another τ,
-    the τ's move adds to it."""
+    the τ's move adds to it. Without published τ the fit measures the default path's."""
+    from tcomp_core.compensation import default_estimate
     from tcomp_core.diagnose import fit_effects
     from tcomp_core.io import Record
 
@@ -492,7 +493,12 @@ def test_the_change_against_the_published_first_order_is_measured_like_the_effec
     )
     record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=None, source="t", dt=sim.dt)
     plain = fit_effects(record, ("delay",)).final
-    assert math.isnan(plain.identification.published_change_c)
+    default = default_estimate(record)
+    assert default is not None
+    published = fit_effects(record, ("delay",), published_taus=(default.tau1, default.tau2)).final
+    assert plain.identification.published_change_c == pytest.approx(
+        published.identification.published_change_c, rel=1e-9
+    )
     own = fit_effects(record, ("delay",), published_taus=(plain.tau1, plain.tau2)).final
     found = own.identification
     assert found.change_c == pytest.approx(plain.identification.change_c)

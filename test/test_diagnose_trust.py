@@ -613,3 +613,27 @@ def test_no_verdict_rests_on_a_tau_of_more_than_half_the_record():
     assert implausibility(base, evaluator) == ""
     slow = dataclasses.replace(base, tau2=long_tau, params={**base.params, "tau2": long_tau})
     assert "record" in implausibility(slow, evaluator)
+
+
+@pytest.mark.slow
+def test_no_verdict_swaps_which_sensor_is_the_slower_against_the_published_taus():
+    """A fit whose τ make the other sensor the slower than the default path's τ do is no
+    physical sensor in the diagnosis too, not only in the output: the delay that the record
+    holds is the verdict judged against τ of its own order and refused against them swapped
+    (the campaign's spurious delays with τ1 and τ2 swapped became verdicts)."""
+    from tcomp_core.effects import Model
+
+    sim = simulate_effect(
+        "delay", "multisine", duration=4.0, noise_percent=1.0, seed=3, params={"delay_s": 0.004}
+    )
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source="x", dt=sim.dt)
+    own = diagnose(record, candidates=("delay",), max_effects=1)
+    assert own.verdict == "delay", own.suspects
+    taus = (float(own.final.tau1), float(own.final.tau2))
+    model = Model(own.final.effects, own.final.params)
+    assert model.implausible(taus, 0.0, taus) == ""
+    assert "which wire is the slower" in model.implausible(taus, 0.0, taus[::-1])
+    swapped = diagnose(record, candidates=("delay",), max_effects=1, published_taus=taus[::-1])
+    assert swapped.verdict != "delay"
+    assert "which wire is the slower" in swapped.suspects[0].signature
+    assert not swapped.suspects[0].significant

@@ -51,6 +51,7 @@ from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
 from ..effects.base import OutputEvidence
 from ..effects.chain import SensorChain
+from ..effects.model import swapped_sensors
 from ..errors import EstimationError
 from ..lines import NOTCH_Q
 from ..tolerance import (
@@ -87,9 +88,6 @@ FIRST_ORDER = "first-order"
 #: A first-order τ whose 95 % interval spans more than this factor is not determined: pure
 #: noise gives 0.004..8 s, two sensors in one gas at K = 60 % a factor of 2.
 MAX_TAU_INTERVAL_RATIO = 10.0
-
-#: Time constants closer than this factor leave undecided which sensor is the slower.
-ORDER_RATIO = 1.5
 
 #: Handlings that undo an effect with all its fitted parameters: none of them may be free
 #: (:attr:`~tcomp_core.diagnose.identification.ParameterCheck.free`).
@@ -602,33 +600,6 @@ def _check_determined(diagnosis: Diagnosis, fit: ModelFit, what: str) -> None:
     )
 
 
-def swapped_sensors(taus: tuple[float, float], published_taus: tuple[float, float]) -> str:
-    """Why ``taus`` make the other sensor the slower one than ``published_taus`` do ('' if not).
-
-    Which sensor is the slower is its wire's (diameter, junction), and no effect swaps it; the
-    default path's τ (ml-eiv with the sensors' gain) tell it where they differ by more than
-    :data:`ORDER_RATIO`. A fit that puts it the other way round by as much has traded the lag
-    for something else. The final fits of 10 of 640 campaign draws did, every one on steps with
-    a mains line or strong conduction and none to the gas's good: on four a delay (0.27 and
-    0.54 s on the two looked at) with τ1 and τ2 swapped around it (2513, 2691, 2753, 2758),
-    which applied made the gas 7.6 → 29.7 % and 1.6 → 30.3 % off; the other six had a τ on a
-    bound and were refused anyway.
-    """
-    fitted, published = taus[0] / taus[1], published_taus[0] / published_taus[1]
-    if not (0.0 < fitted < math.inf and 0.0 < published < math.inf):
-        return ""
-    # log > 0: tc1 the slower; each order decided only beyond ORDER_RATIO.
-    orders = (math.log(fitted), math.log(published))
-    if min(abs(order) for order in orders) < math.log(ORDER_RATIO) or orders[0] * orders[1] > 0:
-        return ""
-    return (
-        f"tau1/tau2 = {taus[0]:.3g}/{taus[1]:.3g} s make tc{1 if fitted > 1.0 else 2} the "
-        f"slower sensor, where the default path's {published_taus[0]:.3g}/"
-        f"{published_taus[1]:.3g} s make it tc{1 if published > 1.0 else 2}: which wire is "
-        "the slower no effect changes"
-    )
-
-
 def _refusal(
     final: ModelFit,
     pieces: tuple[Piece, ...],
@@ -646,9 +617,9 @@ def _refusal(
     change its effects make, or, where the default first order fails the record
     (``first_order_failure``), the change against the default path's gas.
     """
-    implausible = Model(tuple(final.effects), dict(final.params)).implausible(base_taus, dt)
-    if not implausible and published_taus is not None and final.effects:
-        implausible = swapped_sensors((float(final.tau1), float(final.tau2)), published_taus)
+    implausible = Model(tuple(final.effects), dict(final.params)).implausible(
+        base_taus, dt, published_taus
+    )
     if implausible:
         return f"the fit is no physical sensor: {implausible}"
     found = final.identification

@@ -392,6 +392,12 @@ def _base_fit(
     set with: the base fit's τ minimises that disagreement, and taken instead it refused a
     conduction that halved the gas error (campaign draw 467, 68.6 → 33.4 %).
     """
+    if published_taus is None:
+        from ..compensation.plan import default_estimate  # compensation builds on diagnose
+
+        plain = default_estimate(record)
+        if plain is not None:
+            published_taus, published_lines = (float(plain.tau1), float(plain.tau2)), plain.lines
     data = prepare(record)
     taus = _initial_taus(data)
     evaluator = replace(
@@ -430,11 +436,14 @@ def diagnose(
     published_taus : (float, float), optional
         τ1, τ2 the default first-order path publishes for the record, s: the final model's
         identification measures its change to the gas against first order there too
-        (:attr:`~.identification.Identification.published_change_c`).
+        (:attr:`~.identification.Identification.published_change_c`), and no fit that makes
+        the other sensor the slower is a verdict
+        (:func:`~tcomp_core.effects.model.swapped_sensors`). None: estimated here, as
+        ``tcomp estimate`` does (not checked where that path refuses the record).
     published_lines : sequence of ForeignLine
         The lines that path takes off the channel carrying one
         (:attr:`tcomp_core.estimators.Estimate.lines`), so that its first order is measured
-        as it publishes it.
+        as it publishes it (with ``published_taus`` None, those of the estimate made here).
 
     Returns
     -------

@@ -42,17 +42,54 @@ from .chain import (
 )
 from .registry import EFFECTS, check_effect_names
 
-__all__ = ["LEVEL", "LeastSquaresProblem", "Model", "make_context"]
+__all__ = [
+    "LEVEL",
+    "ORDER_RATIO",
+    "LeastSquaresProblem",
+    "Model",
+    "make_context",
+    "swapped_sensors",
+]
 
 #: The base model's level difference between the sensors: tc2 reads T + level_c where tc1
 #: reads T, degrees C (see :attr:`Model.has_level`).
 LEVEL = "level_c"
+
+#: Time constants closer than this factor leave undecided which sensor is the slower.
+ORDER_RATIO = 1.5
 
 #: Evaluations allowed to each start of a multi-start search before the best is polished.
 _SCOUT_EVALUATIONS = 30
 #: Samples of the stretch (mid-record) the starts are scouted on when the record is longer:
 #: the scouts only choose the basin; the polish runs on every sample.
 _SCOUT_SAMPLES = 10_000
+
+
+def swapped_sensors(taus: tuple[float, float], published_taus: tuple[float, float]) -> str:
+    """Why ``taus`` make the other sensor the slower one than ``published_taus`` do ('' if not).
+
+    Which sensor is the slower is its wire's (diameter, junction), and no effect swaps it; the
+    default path's τ (ml-eiv with the sensors' gain) tell it where they differ by more than
+    :data:`ORDER_RATIO`. A fit that puts it the other way round by as much has traded the lag
+    for something else. The final fits of 10 of 640 campaign draws did, every one on steps with
+    a mains line or strong conduction and none to the gas's good: on four a delay (0.27 and
+    0.54 s on the two looked at) with τ1 and τ2 swapped around it (2513, 2691, 2753, 2758),
+    which applied made the gas 7.6 → 29.7 % and 1.6 → 30.3 % off; the other six had a τ on a
+    bound and were refused anyway.
+    """
+    fitted, published = taus[0] / taus[1], published_taus[0] / published_taus[1]
+    if not (0.0 < fitted < math.inf and 0.0 < published < math.inf):
+        return ""
+    # log > 0: tc1 the slower; each order decided only beyond ORDER_RATIO.
+    orders = (math.log(fitted), math.log(published))
+    if min(abs(order) for order in orders) < math.log(ORDER_RATIO) or orders[0] * orders[1] > 0:
+        return ""
+    return (
+        f"tau1/tau2 = {taus[0]:.3g}/{taus[1]:.3g} s make tc{1 if fitted > 1.0 else 2} the "
+        f"slower sensor, where the default path's {published_taus[0]:.3g}/"
+        f"{published_taus[1]:.3g} s make it tc{1 if published > 1.0 else 2}: which wire is "
+        "the slower no effect changes"
+    )
 
 
 def make_context(
@@ -348,7 +385,10 @@ class Model:
         return self._instances  # type: ignore[attr-defined]
 
     def implausible(
-        self, base_taus_s: tuple[float, float] | None, collapsed_below_s: float = 0.0
+        self,
+        base_taus_s: tuple[float, float] | None,
+        collapsed_below_s: float = 0.0,
+        published_taus_s: tuple[float, float] | None = None,
     ) -> str:
         """Why this model's parameters are no physical sensor ('' when they are plausible).
 
@@ -358,6 +398,8 @@ class Model:
         effect's own bound (:meth:`~.base.Effect.implausible`). A first-order τ below
         ``collapsed_below_s`` (s; the sample interval) gives no scale: the base model found no
         lag to measure there (a missing delay collapses τ1 so), and that τ is not compared.
+        With effects, τ that make the other sensor the slower one than the default path's
+        ``published_taus_s`` do (None: not checked) are none either (:func:`swapped_sensors`).
         """
         if base_taus_s is not None and self.instances:
             rise = max(effect.max_tau_factor for effect in self.instances)
@@ -383,6 +425,8 @@ class Model:
             reason = effect.implausible(self.params)
             if reason:
                 return reason
+        if published_taus_s is not None and self.instances:
+            return swapped_sensors((self.tau1, self.tau2), published_taus_s)
         return ""
 
     def without_level(self) -> Model:
