@@ -34,8 +34,9 @@ samples. The slope's standard error is printed too: a slope within two of them i
     memory kept by the allocator, so RSS growing while the heap in use does not is allocator
     retention (fragmentation, arenas), not a leak; the count of Python's own blocks
     (``sys.getallocatedblocks``) is printed as well. glibc's mmap threshold is pinned as the
-    node's ``main()`` pins it (:mod:`tcomp_core.memory`); ``--glibc-dynamic`` leaves it to
-    glibc, as before, and ``--trim S`` calls ``malloc_trim(0)`` every S s of stream (to tell
+    node's ``main()`` pins it (:mod:`tcomp_core.memory`), and so is the worker processes'
+    (their RSS, summed, is sampled as well); ``--glibc-dynamic`` leaves it to glibc in all of
+    them, as before, and ``--trim S`` calls ``malloc_trim(0)`` every S s of stream (to tell
     retention from use). ``--tracemalloc N`` starts tracing after the warm-up, takes a
     snapshot after another warm-up and one at the end, and prints the N biggest differences
     grouped by traceback (tracing slows the engine tenfold: use it to hunt, not to measure).
@@ -146,17 +147,21 @@ def run_engine(args: argparse.Namespace) -> dict:
     values = {spec.name: spec.default for spec in PARAMETERS}
     values.update({name: _typed(values[name], v) for name, v in parameters(args).items()})
     config = OnlineConfig.from_parameters(values)
+    workers: tuple[ProcessRunner, ...] = ()
     if args.inline:
         engine = Engine(config, diagnosis_runner=InlineRunner())
     else:
-        fits = ProcessRunner()
+        fits = ProcessRunner(pin_heap=not args.glibc_dynamic)
+        diagnoses = ProcessRunner(pin_heap=not args.glibc_dynamic)
         engine = Engine(
             config,
             runner=fits,
-            diagnosis_runner=ProcessRunner(),
+            diagnosis_runner=diagnoses,
             estimate_runner=ThreadRunner("tcomp-estimate"),
         )
         fits.start(wait_s=30.0)
+        diagnoses.start(wait_s=30.0)
+        workers = (fits, diagnoses)
     rate = round(args.rate)
     per_drain = round(rate * DRAIN_S)
     loop = round(args.loop_s * rate) // per_drain * per_drain
@@ -185,6 +190,8 @@ def run_engine(args: argparse.Namespace) -> dict:
     stream = Series("stream time")  # (wall, stream seconds): stream hours per wall hour
     if args.tracemalloc:
         series["traced"] = Series("tracemalloc traced")
+    if not args.inline:
+        series["workers"] = Series("worker processes' RSS")
     snapshots = []
 
     def sample(t: float, stream_s: float) -> None:
@@ -198,6 +205,10 @@ def run_engine(args: argparse.Namespace) -> dict:
         series["blocks"].add(t, 64 * sys.getallocatedblocks())
         if tracemalloc.is_tracing():
             series["traced"].add(t, tracemalloc.get_traced_memory()[0])
+        if "workers" in series:
+            sizes = [rss_bytes(pid) for runner in workers for pid in runner.worker_pids]
+            if sizes and None not in sizes:  # a worker restarting is left out
+                series["workers"].add(t, sum(size for size in sizes if size is not None))
         stream.add(t, stream_s)
 
     start = time.monotonic()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 from dataclasses import dataclass
 
 __all__ = ["MMAP_THRESHOLD", "HeapInfo", "heap_info", "pin_mmap_threshold"]
@@ -39,7 +40,10 @@ def pin_mmap_threshold(threshold: int = MMAP_THRESHOLD) -> bool:
     return bool(mallopt(_M_MMAP_THRESHOLD, threshold))
 
 
+@functools.cache
 def _libc() -> ctypes.CDLL | None:
+    # Once per process: find_library runs ldconfig, and every CDLL builds its function-pointer
+    # class anew (a soak sampling heap_info once a second held 61 KiB more in ten minutes).
     name = ctypes.util.find_library("c")
     try:
         return ctypes.CDLL(name) if name else None

@@ -158,9 +158,19 @@ class ThreadRunner:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _lower_priority() -> None:
-    """Initializer of the worker process: yield the CPU to the caller."""
+def _start_worker(pin_heap: bool) -> None:
+    """Initializer of the worker process: lower its priority, pin glibc's mmap threshold.
+
+    The worker yields the CPU to the caller, and its threshold is pinned as the node's process
+    pins it (:mod:`tcomp_core.memory`): a worker frees window-sized arrays job after job as
+    the node does (a signal model's segment and priming pairs, a diagnosis's record), so its
+    heap fragments the same way once glibc has raised the threshold.
+    """
     os.nice(WORKER_NICENESS)
+    if pin_heap:
+        from .memory import pin_mmap_threshold
+
+        pin_mmap_threshold()
 
 
 class ProcessRunner:
@@ -170,9 +180,16 @@ class ProcessRunner:
     jobs (its start-up, mostly imports, takes a second or two). If it dies, the job's outcome
     says so and the next submit starts a new one. Functions and arguments must pickle
     (module-level functions, numpy arrays, dataclasses).
+
+    Parameters
+    ----------
+    pin_heap : bool
+        Pin glibc's mmap threshold in the worker (default; False leaves it to glibc, as
+        ``bench/bench_soak.py --glibc-dynamic`` measures).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, pin_heap: bool = True) -> None:
+        self._pin_heap = pin_heap
         self._pool: ProcessPoolExecutor | None = None
         self._future: Future[Any] | None = None
         self._outcome: Outcome | None = None
@@ -209,7 +226,8 @@ class ProcessRunner:
             self._pool = ProcessPoolExecutor(
                 max_workers=1,
                 mp_context=multiprocessing.get_context("spawn"),
-                initializer=_lower_priority,
+                initializer=_start_worker,
+                initargs=(self._pin_heap,),
             )
             self._future = self._pool.submit(_warm_up)
         future = self._future

@@ -11,6 +11,7 @@ from __future__ import annotations
 import gc
 import subprocess
 import sys
+import time
 import tracemalloc
 
 import numpy as np
@@ -108,3 +109,41 @@ def test_a_pinned_mmap_threshold_keeps_freed_large_arrays_out_of_the_heap():
         [sys.executable, "-c", _PINNED_CHECK], capture_output=True, text=True, check=True
     )
     assert done.stdout.split() == ["1"], done.stdout + done.stderr
+
+
+def _mapped_blocks_after_a_freed_large_array() -> int:
+    """In a worker: mappings an 8 MiB array takes after a 16 MiB one was freed (module level,
+    so that it pickles by reference)."""
+    big = np.ones(16 << 20, np.uint8)
+    del big
+    before = heap_info()
+    array = np.ones((8 << 20) + 4096, np.uint8)
+    after = heap_info()
+    assert before is not None and after is not None and array.size
+    return after.mapped_blocks - before.mapped_blocks
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(heap_info() is None, reason="glibc's mallinfo2 is needed")
+def test_the_worker_processes_pin_the_mmap_threshold_as_the_node_does():
+    # The fitting and diagnosis workers free window-sized arrays job after job too: pinned (the
+    # default) the second array has a mapping of its own; left to glibc it comes from a heap.
+    from tcomp_core.workers import ProcessRunner
+
+    found = {}
+    for pin in (True, False):
+        runner = ProcessRunner(pin_heap=pin)
+        try:
+            assert runner.start(wait_s=60.0)
+            assert runner.submit(_mapped_blocks_after_a_freed_large_array)
+            outcome = None
+            for _ in range(600):
+                outcome = runner.poll()
+                if outcome is not None:
+                    break
+                time.sleep(0.05)
+        finally:
+            runner.close()
+        assert outcome is not None and not outcome.error, outcome
+        found[pin] = outcome.value
+    assert found == {True: 1, False: 0}
