@@ -53,6 +53,7 @@ from ..effects.base import OutputEvidence
 from ..effects.chain import SensorChain
 from ..effects.model import swapped_sensors
 from ..errors import EstimationError
+from ..estimators.default import default_estimate
 from ..lines import NOTCH_Q
 from ..tolerance import (
     CLASS2_GAIN,
@@ -742,20 +743,6 @@ def default_first_order_failure(record: Record, plain: Estimate | None) -> str:
     except (ValueError, np.linalg.LinAlgError):
         return ""
     return misfit.describe(gas_std_c) if misfit.material(gas_std_c) else ""
-
-
-def default_estimate(record: Record) -> Estimate | None:
-    """The default first-order path's estimate on ``record``; None if it refuses.
-
-    As ``tcomp estimate`` gives it without options: ml-eiv with the noise ratio φ measured
-    and the lines one sensor carries alone notched.
-    """
-    from ..estimators import estimate
-
-    try:
-        return estimate(record.tc1, record.tc2, record.dt, phi=None)
-    except (EstimationError, ValueError):
-        return None
 
 
 def default_taus(record: Record) -> tuple[float, float] | None:

@@ -25,6 +25,7 @@ from ..effects import EFFECT_NAMES, Model, check_effect_names, make_context
 from ..effects.chain import fractional_shift
 from ..errors import EstimationError, TcompError
 from ..estimators.beta import estimate_beta_from_scatter
+from ..estimators.default import default_estimate
 from ..estimators.scatter import beta_scatter
 from ..io import Record
 from ..lines import ForeignLine
@@ -393,8 +394,6 @@ def _base_fit(
     conduction that halved the gas error (campaign draw 467, 68.6 → 33.4 %).
     """
     if published_taus is None:
-        from ..compensation.plan import default_estimate  # compensation builds on diagnose
-
         plain = default_estimate(record)
         if plain is not None:
             published_taus, published_lines = (float(plain.tau1), float(plain.tau2)), plain.lines
