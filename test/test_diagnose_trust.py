@@ -637,3 +637,32 @@ def test_no_verdict_swaps_which_sensor_is_the_slower_against_the_published_taus(
     assert swapped.verdict != "delay"
     assert "which wire is the slower" in swapped.suspects[0].signature
     assert not swapped.suspects[0].significant
+
+
+def test_wires_whose_radiation_needs_emissivities_far_apart_are_no_physical_sensor():
+    """ρ_slow/ρ_fast = (ε_s/ε_f) (τ_s/τ_f)^(1/3): campaign draw 2842 (a calibration beyond class
+    2 on a cool step record, no radiation) was fitted with the thicker wire radiating 0.23 of
+    what one emissivity gives, and its dynamics made the gas worse; the radiation draws' fits
+    came within 0.94-1.62 of it."""
+    from tcomp_core.effects import Model
+    from tcomp_core.effects.radiation import EMISSIVITY_RATIO_MAX
+
+    taus = {"tau1": 0.0647, "tau2": 0.3217}
+    one = (taus["tau2"] / taus["tau1"]) ** (1.0 / 3.0)
+    spurious = {**taus, "rho1": 0.0161, "rho2": 0.0062, "wall_c": 38.9}
+    reason = Model(("radiation",), spurious).implausible(None)
+    assert "emissivities would differ" in reason and "0.226 times" in reason, reason
+    for rel in (1.0, 0.6, 1.62, 1.9):
+        fit = {**taus, "rho1": 0.07, "rho2": 0.07 * one * rel, "wall_c": 300.0}
+        assert Model(("radiation",), fit).implausible(None) == ""
+    beyond = {
+        **taus,
+        "rho1": 0.07,
+        "rho2": 0.07 * one * 1.05 * EMISSIVITY_RATIO_MAX,
+        "wall_c": 0.0,
+    }
+    assert "emissivities would differ" in Model(("radiation",), beyond).implausible(None)
+    faint = {**taus, "rho1": 0.008, "rho2": 0.001, "wall_c": 0.0}  # no material radiation
+    assert Model(("radiation",), faint).implausible(None) == ""
+    swapped = {"tau1": taus["tau2"], "tau2": taus["tau1"], "rho1": 0.0062, "rho2": 0.0161}
+    assert "rho1/rho2" in Model(("radiation",), {**swapped, "wall_c": 38.9}).implausible(None)

@@ -26,6 +26,7 @@ from ..tolerance import CLASS2_GAIN, CLASS2_MARGIN
 from .base import KELVIN, Effect, Evidence, FitContext, OutputEvidence, ParamSpec, level_not_fixed
 
 __all__ = [
+    "EMISSIVITY_RATIO_MAX",
     "MIN_RHO",
     "Radiation",
     "air_conductivity",
@@ -40,6 +41,10 @@ MIN_RHO = 0.01
 
 #: Weight of the ρ2/ρ1 = (τ2/τ1)^⅓ prior, in units of the criterion per unit ρ.
 PRIOR_WEIGHT = 30.0
+#: Most the two wires' emissivities differ by (a factor): two wires of one alloy in one gas
+#: oxidise alike, type K between about 0.6 and 0.9, so the slower wire's ρ over the faster's
+#: stays within this factor of the one-emissivity ratio (τs/τf)^⅓.
+EMISSIVITY_RATIO_MAX = 2.0
 #: Stefan–Boltzmann constant, W m⁻² K⁻⁴.
 STEFAN_BOLTZMANN = 5.670374419e-8
 #: Least volumetric heat capacity ρc of thermocouple wire, J m⁻³ K⁻¹: platinum (types R, S,
@@ -181,6 +186,33 @@ class Radiation(Effect):
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         return bool(max(params["rho1"], params["rho2"]) >= MIN_RHO)
+
+    def implausible(self, params: Mapping[str, float]) -> str:
+        """Two wires whose ρ ratio needs emissivities more than a factor apart.
+
+        ρ = 4 ε σ T̄³/h with h ∝ d^-½ and τ ∝ d^1.5 gives ρs/ρf = (εs/εf) (τs/τf)^⅓ for the
+        slower and the faster wire; beyond :data:`EMISSIVITY_RATIO_MAX` either way (with the
+        wire that radiates more material, :data:`MIN_RHO`) the fit has found something else
+        that grows with the level. On the campaign's radiation draws the fitted ratio came
+        within 0.94–1.62 of (τs/τf)^⅓; a calibration beyond class 2 on a cool step record
+        (draw 2842, no radiation) was fitted with the thicker wire radiating 0.23 of it, and
+        its dynamics made the gas 14.3 → 16.0 % off.
+        """
+        tau1, tau2 = params.get("tau1", math.nan), params.get("tau2", math.nan)
+        rho1, rho2 = params["rho1"], params["rho2"]
+        if not (tau1 > 0.0 and tau2 > 0.0) or max(rho1, rho2) < MIN_RHO:
+            return ""
+        slow, fast = (2, 1) if tau2 >= tau1 else (1, 2)
+        one_emissivity = (max(tau1, tau2) / min(tau1, tau2)) ** (1.0 / 3.0)
+        ratio = params[f"rho{slow}"] / max(params[f"rho{fast}"], 1e-12)
+        if 1.0 / EMISSIVITY_RATIO_MAX <= ratio / one_emissivity <= EMISSIVITY_RATIO_MAX:
+            return ""
+        return (
+            f"rho{slow}/rho{fast} = {params[f'rho{slow}']:.3g}/{params[f'rho{fast}']:.3g} of "
+            f"the slower over the faster wire is {ratio / one_emissivity:.3g} times the "
+            f"(tau{slow}/tau{fast})^(1/3) = {one_emissivity:.3g} of one emissivity: the wires' "
+            f"emissivities would differ by more than {EMISSIVITY_RATIO_MAX:g}x"
+        )
 
     def output_handling(self, fit: OutputEvidence) -> tuple[str, str]:
         lows = [fit.intervals.get(f"rho{i}", (math.inf, math.inf))[0] for i in (1, 2)]
