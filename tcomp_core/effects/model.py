@@ -392,41 +392,59 @@ class Model:
     ) -> str:
         """Why this model's parameters are no physical sensor ('' when they are plausible).
 
-        A τ moved from the first-order estimate ``base_taus_s`` (None: not checked) by more
-        than the loosest :attr:`~.base.Effect.max_tau_factor` of the model's effects (down:
-        :attr:`~.base.Effect.max_tau_fall` where an effect sets it), or an
-        effect's own bound (:meth:`~.base.Effect.implausible`). A first-order τ below
-        ``collapsed_below_s`` (s; the sample interval) gives no scale: the base model found no
-        lag to measure there (a missing delay collapses τ1 so), and that τ is not compared.
-        With effects, τ that make the other sensor the slower one than the default path's
-        ``published_taus_s`` do (None: not checked) are none either (:func:`swapped_sensors`).
+        A τ moved from a first-order estimate by more than the loosest
+        :attr:`~.base.Effect.max_tau_factor` of the model's effects (down:
+        :attr:`~.base.Effect.max_tau_fall` where an effect sets it), or an effect's own bound
+        (:meth:`~.base.Effect.implausible`). The first-order estimates are the fit's base
+        ``base_taus_s`` and, with effects, the default path's ``published_taus_s`` (None: not
+        checked): the two first orders take different things into τ (the default path fits the
+        sensors' gain and notches a line one channel carries; a line left on bent the base's
+        τ1 to 1/40 of the truth, where the default path had it within 1 %), and an effect moves
+        τ only so far from either. A first-order τ below ``collapsed_below_s`` (s; the sample
+        interval) gives no scale: that first order found no lag to measure there (a missing
+        delay collapses τ1 so), and that τ is not compared. τ that make the other sensor the
+        slower one than the default path's do are none either (:func:`swapped_sensors`).
         """
-        if base_taus_s is not None and self.instances:
-            rise = max(effect.max_tau_factor for effect in self.instances)
-            fall = max(
-                effect.max_tau_factor if effect.max_tau_fall is None else effect.max_tau_fall
-                for effect in self.instances
-            )
-            for index, base in enumerate(base_taus_s, start=1):
-                tau = self.params.get(f"tau{index}", math.nan)
-                if not (base > collapsed_below_s and base > 0.0 and tau > 0.0):
-                    continue
-                if tau / base > rise:
-                    return (
-                        f"tau{index} = {tau:.3g} s is {tau / base:.3g}x the first-order "
-                        f"{base:.3g} s (at most {rise:.3g}x with {'+'.join(self.effects)})"
-                    )
-                if base / tau > fall:
-                    return (
-                        f"tau{index} = {tau:.3g} s is 1/{base / tau:.3g} of the first-order "
-                        f"{base:.3g} s (at least 1/{fall:.3g} with {'+'.join(self.effects)})"
-                    )
+        references = [("first-order", base_taus_s)]
+        if published_taus_s is not None:
+            references.append(("default path's", published_taus_s))
+        for name, taus in references:
+            reason = self._moved_too_far(name, taus, collapsed_below_s)
+            if reason:
+                return reason
         for effect in self.instances:
             reason = effect.implausible(self.params)
             if reason:
                 return reason
         if published_taus_s is not None and self.instances:
             return swapped_sensors((self.tau1, self.tau2), published_taus_s)
+        return ""
+
+    def _moved_too_far(
+        self, name: str, first_order_s: tuple[float, float] | None, collapsed_below_s: float
+    ) -> str:
+        """Why a τ lies beyond the effects' reach of the ``name`` first order ('' if none)."""
+        if first_order_s is None or not self.instances:
+            return ""
+        rise = max(effect.max_tau_factor for effect in self.instances)
+        fall = max(
+            effect.max_tau_factor if effect.max_tau_fall is None else effect.max_tau_fall
+            for effect in self.instances
+        )
+        for index, base in enumerate(first_order_s, start=1):
+            tau = self.params.get(f"tau{index}", math.nan)
+            if not (base > collapsed_below_s and base > 0.0 and tau > 0.0):
+                continue
+            if tau / base > rise:
+                return (
+                    f"tau{index} = {tau:.3g} s is {tau / base:.3g}x the {name} {base:.3g} s "
+                    f"(at most {rise:.3g}x with {'+'.join(self.effects)})"
+                )
+            if base / tau > fall:
+                return (
+                    f"tau{index} = {tau:.3g} s is 1/{base / tau:.3g} of the {name} {base:.3g} s "
+                    f"(at least 1/{fall:.3g} with {'+'.join(self.effects)})"
+                )
         return ""
 
     def without_level(self) -> Model:
