@@ -494,9 +494,10 @@ def implausibility(fit: ModelFit, evaluator: Evaluator) -> str:
     :data:`MAX_TAU_PER_RECORD` of the record is not told from a gain (the record's changes
     reach such a sensor as they reach an integrator, and the fits' search ends at one record),
     so no verdict rests on it, whatever the first-order τ (conduction to cold supports put the
-    base τ at 95 times the truth, and a calibration with τ as long was named). Against the τ
-    the default path publishes (``evaluator.published_taus_s``) the fit may not swap which
-    sensor is the slower (:func:`~tcomp_core.effects.model.swapped_sensors`).
+    base τ at 95 times the truth, and a calibration with τ as long was named). The τ the
+    default path publishes (``evaluator.published_taus_s``) are a first order the fit's τ must
+    stay within its effects' reach of too, and whose sensor order it may not swap
+    (:func:`~tcomp_core.effects.model.swapped_sensors`).
     """
     longest = MAX_TAU_PER_RECORD * evaluator.context.duration_s
     for index, tau in enumerate((fit.tau1, fit.tau2), start=1):

@@ -46,8 +46,8 @@ class Delay(Effect):
     a delay gives back the lag the first order hid, it takes none away. Fits that put τ1 at
     1/20 and 1/50 of the default path's (campaign draws 2878 and 2892, steps with a mains
     line and no delay, the default path within 2 % of the truth) traded the line for a shift
-    of one channel; applied, the second made the gas 1.9 → 21.9 % off. A real delay's fit
-    stood at 0.93–1.93 times the default path's τ on the campaign's delay draws.
+    of one channel; applied, the second made the gas 1.9 → 21.9 % off. Real delays' fits
+    stood at 0.98–1.93 times the default path's τ (campaign draws 2829 and 2799).
 
     Material (:meth:`material`) from :data:`MIN_SAMPLES` of a sample of the record: the
     diagnosis decimates a 5 kHz record to a few hundred Hz, and a delay of 2.5 raw samples,
