@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -87,16 +88,13 @@ def test_the_engine_holds_no_more_after_its_buffers_are_full():
 
 
 #: Run in a child process: a pinned threshold would stay for the rest of the test session.
-_PINNED_CHECK = """
-import numpy as np
-from tcomp_core.memory import heap_info, pin_mmap_threshold
+_PINNED_CHECK = f"""
+import sys
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+from tcomp_core.memory import pin_mmap_threshold
+from test_online_soak import _mapped_blocks_after_a_freed_large_array
 assert pin_mmap_threshold()
-big = np.ones(16 << 20, np.uint8)
-del big
-before = heap_info()
-array = np.ones((8 << 20) + 4096, np.uint8)
-after = heap_info()
-print(after.mapped_blocks - before.mapped_blocks)
+print(_mapped_blocks_after_a_freed_large_array())
 """
 
 
@@ -112,8 +110,8 @@ def test_a_pinned_mmap_threshold_keeps_freed_large_arrays_out_of_the_heap():
 
 
 def _mapped_blocks_after_a_freed_large_array() -> int:
-    """In a worker: mappings an 8 MiB array takes after a 16 MiB one was freed (module level,
-    so that it pickles by reference)."""
+    """Mappings an 8 MiB array takes after a 16 MiB one was freed (run in a child process or a
+    worker; module level, so that it pickles by reference)."""
     big = np.ones(16 << 20, np.uint8)
     del big
     before = heap_info()

@@ -104,8 +104,9 @@ def run_job(
     """
     started = _time.perf_counter()
     try:
-        # The default path's τ: what the output model falls back to, and measures against.
-        plain = default_estimate(record) if output else None
+        # The default path's τ: what the output model falls back to, and what every fit here
+        # is judged against (estimated once; the diagnosis would estimate it per call).
+        plain = default_estimate(record)
         published = None if plain is None else (float(plain.tau1), float(plain.tau2))
         lines = () if plain is None else plain.lines
         if effects is None:
@@ -115,7 +116,9 @@ def run_job(
             fitted = fit_effects(record, effects, published_taus=published, published_lines=lines)
             suspect = None
             if find_suspect:
-                suspects = diagnose(record, max_effects=1).suspects
+                suspects = diagnose(
+                    record, max_effects=1, published_taus=published, published_lines=lines
+                ).suspects
                 suspect = next((item for item in suspects if item.significant), None)
         judged: Callable[..., OutputModel] = (
             partial(output_model_with_fallback, record)

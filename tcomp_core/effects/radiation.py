@@ -32,6 +32,7 @@ __all__ = [
     "air_conductivity",
     "gain_within_class2",
     "max_radiation_ratio",
+    "one_emissivity_ratio",
     "sensor_level_difference_c",
 ]
 
@@ -133,6 +134,11 @@ def max_radiation_ratio(tau_s: float, mean_c: float) -> float:
     return 4.0 * STEFAN_BOLTZMANN * mean_k**3 / h_min
 
 
+def one_emissivity_ratio(params: Mapping[str, float]) -> float:
+    """ρ2/ρ1 of two wires of one emissivity, (τ2/τ1)^⅓ (module notes; ``tau1``, ``tau2`` in s)."""
+    return float((params["tau2"] / params["tau1"]) ** (1.0 / 3.0))
+
+
 class Radiation(Effect):
     """ρ1, ρ2 (dimensionless) and the wall temperature (degrees C).
 
@@ -199,11 +205,10 @@ class Radiation(Effect):
         its dynamics made the gas 14.3 → 16.0 % off.
         """
         tau1, tau2 = params.get("tau1", math.nan), params.get("tau2", math.nan)
-        rho1, rho2 = params["rho1"], params["rho2"]
-        if not (tau1 > 0.0 and tau2 > 0.0) or max(rho1, rho2) < MIN_RHO:
+        if not (tau1 > 0.0 and tau2 > 0.0) or max(params["rho1"], params["rho2"]) < MIN_RHO:
             return ""
         slow, fast = (2, 1) if tau2 >= tau1 else (1, 2)
-        one_emissivity = (max(tau1, tau2) / min(tau1, tau2)) ** (1.0 / 3.0)
+        one_emissivity = one_emissivity_ratio(params) ** (1 if slow == 2 else -1)
         ratio = params[f"rho{slow}"] / max(params[f"rho{fast}"], 1e-12)
         if 1.0 / EMISSIVITY_RATIO_MAX <= ratio / one_emissivity <= EMISSIVITY_RATIO_MAX:
             return ""
@@ -275,7 +280,7 @@ class Radiation(Effect):
         ]
 
     def identifiability(self, params: Mapping[str, float]) -> str:
-        ratio = (params["tau2"] / params["tau1"]) ** (1.0 / 3.0)
+        ratio = one_emissivity_ratio(params)
         return (
             "radiation: tau, rho1, rho2 and the wall trade along a shallow valley; the prior "
             f"rho2/rho1 = (tau2/tau1)^(1/3) = {ratio:.3g} (one emissivity, Nu ~ Re^1/2) picks "
@@ -291,5 +296,5 @@ class Radiation(Effect):
         return r, params["wall_c"] + KELVIN
 
     def penalty(self, params: Mapping[str, float], n_rows: int) -> NDArray[np.float64]:
-        ratio = (params["tau2"] / params["tau1"]) ** (1.0 / 3.0)
+        ratio = one_emissivity_ratio(params)
         return np.array([PRIOR_WEIGHT * (params["rho2"] - ratio * params["rho1"])])
