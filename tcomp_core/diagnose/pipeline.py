@@ -33,6 +33,7 @@ from .heldout import Evaluator, heldout_error_percent
 from .prepare import PreparedData, block_length_s, prepare
 from .ranking import (
     MAX_EFFECTS,
+    MIN_FALL_PER_FLOOR,
     beats_clearly,
     fit_other_form,
     fit_with_effect,
@@ -249,8 +250,14 @@ def _descend(
     start: Suspect,
     candidates: Sequence[str],
     max_effects: int,
-) -> Staircase:
-    """The staircase that takes ``start`` from the first round, then the best at each step."""
+    incumbent: ModelFit | None = None,
+) -> Staircase | None:
+    """The staircase that takes ``start`` from the first round, then the best at each step.
+
+    With an ``incumbent`` (another staircase's last step) the descent stops, returning None, as
+    soon as it can no longer end clearly better than it (:func:`_cannot_end_better`): the
+    rounds it would still fit could not change which staircase is taken.
+    """
     steps: list[ModelFit] = [fit]
     rounds: list[list[Suspect]] = [first_round]
     expected: list[str] = []
@@ -262,6 +269,8 @@ def _descend(
         fit = evaluator.with_intervals(chosen.fit)
         steps.append(fit)
         remaining.remove(chosen.effect)
+        if incumbent is not None and _cannot_end_better(fit, incumbent, evaluator.data.phi_hat):
+            return None
         if not remaining or len(steps) > max_effects + len(expected):
             break
         suspects = next_round(evaluator, Model(fit.effects, fit.params), fit, remaining)
@@ -279,6 +288,23 @@ def _clearly_better(candidate: ModelFit, incumbent: ModelFit, phi_hat: float) ->
     if len(candidate.effects) > len(incumbent.effects):
         return is_significant(incumbent, candidate, phi_hat=phi_hat)
     return beats_clearly(candidate, incumbent, raw=False)
+
+
+def _cannot_end_better(step: ModelFit, incumbent: ModelFit, phi_hat: float) -> bool:
+    """Whether no staircase through ``step`` can end clearly better than ``incumbent``.
+
+    A model error is never negative, so when ``incumbent``'s is below the fall significance
+    asks (:data:`.ranking.MIN_FALL_PER_FLOOR` noise floors) no model with more effects can be
+    significant against it (:func:`_clearly_better`). A staircase at ``step`` then ends there
+    or with more effects: with more effects than ``incumbent`` it cannot win, and with as many
+    it wins only if ``step`` itself is clearly better.
+    """
+    if not incumbent.error_pct < MIN_FALL_PER_FLOOR * incumbent.noise_floor_pct:
+        return False
+    extra = len(step.effects) - len(incumbent.effects)
+    if extra > 0:
+        return True
+    return extra == 0 and not _clearly_better(step, incumbent, phi_hat)
 
 
 def _staircase(
@@ -300,17 +326,18 @@ def _staircase(
     starts = [s for s in first if s.significant and s.fit is not None]
     if not starts:
         return Staircase([fit], [first], [])
-    branches = [
-        _descend(evaluator, fit, first, start, remaining, max_effects)
-        for start in starts[:FIRST_ROUND_BRANCHES]
-    ]
-    best = branches[0]
-    for other in branches[1:]:
-        if _clearly_better(other.steps[-1], best.steps[-1], evaluator.data.phi_hat):
+    greedy_branch = _descend(evaluator, fit, first, starts[0], remaining, max_effects)
+    assert greedy_branch is not None  # no incumbent: never abandoned
+    best = greedy_branch
+    for start in starts[1:FIRST_ROUND_BRANCHES]:
+        other = _descend(evaluator, fit, first, start, remaining, max_effects, best.steps[-1])
+        if other is not None and _clearly_better(
+            other.steps[-1], best.steps[-1], evaluator.data.phi_hat
+        ):
             best = other
-    if best is branches[0]:
+    if best is greedy_branch:
         return best
-    greedy = branches[0].steps[-1]
+    greedy = greedy_branch.steps[-1]
     taken = best.steps[-1]
     note = (
         f"the first round's best suspect, {greedy.effects[0]}, led to "
