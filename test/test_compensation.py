@@ -1075,3 +1075,30 @@ def test_a_fit_that_swaps_which_sensor_is_the_slower_is_no_physical_sensor():
     assert "the fit is no physical sensor: tau1" in swapped.refusal, swapped.refusal
     assert "of the default path's" in swapped.refusal
     assert (swapped.tau1, swapped.tau2) == taus[::-1]  # the gas on the default path's τ
+
+
+def test_a_record_the_default_path_refuses_is_estimated_once(monkeypatch):
+    """The output model's fit runs the default path once; its refusal is passed on, not redone
+    by the diagnosis (which estimated it again, 0.3-0.5 s a record)."""
+    from tcomp_core.compensation import fit_output_model, plan
+    from tcomp_core.diagnose import pipeline
+    from tcomp_core.errors import EstimationError
+    from tcomp_core.io import Record
+
+    calls = []
+    real = plan.default_estimate
+
+    def counted(record):
+        calls.append(record.source)
+        return real(record)
+
+    monkeypatch.setattr(plan, "default_estimate", counted)
+    monkeypatch.setattr(pipeline, "default_estimate", counted)
+    rng = np.random.default_rng(26)
+    time = np.arange(4000) * 0.002
+    noise = 300.0 + rng.standard_normal((2, time.size))
+    record = Record(time=time, tc1=noise[0], tc2=noise[1], ref=None, source="noise", dt=0.002)
+    assert real(record) is None  # the default path refuses pure noise
+    with pytest.raises(EstimationError):
+        fit_output_model(record, ())
+    assert calls == ["noise"]

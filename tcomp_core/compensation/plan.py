@@ -706,10 +706,14 @@ def fit_output_model(record: Record, effects: tuple[str, ...] | None) -> OutputM
     lines = () if plain is None else plain.lines
     judged: Callable[..., OutputModel] = output_model_from_diagnosis
     if effects is None:
-        diagnosis = diagnose(record, published_taus=taus, published_lines=lines)
+        diagnosis = diagnose(
+            record, published_taus=taus, published_lines=lines, published_tried=True
+        )
         judged = partial(output_model_with_fallback, record)
     else:
-        diagnosis = fit_effects(record, effects, published_taus=taus, published_lines=lines)
+        diagnosis = fit_effects(
+            record, effects, published_taus=taus, published_lines=lines, published_tried=True
+        )
     return judged(
         diagnosis,
         origin_s=float(record.time[0]),

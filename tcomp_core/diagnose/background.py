@@ -110,14 +110,26 @@ def run_job(
         published = None if plain is None else (float(plain.tau1), float(plain.tau2))
         lines = () if plain is None else plain.lines
         if effects is None:
-            fitted = diagnose(record, published_taus=published, published_lines=lines)
+            fitted = diagnose(
+                record, published_taus=published, published_lines=lines, published_tried=True
+            )
             suspect = next((item for item in fitted.suspects if item.significant), None)
         else:
-            fitted = fit_effects(record, effects, published_taus=published, published_lines=lines)
+            fitted = fit_effects(
+                record,
+                effects,
+                published_taus=published,
+                published_lines=lines,
+                published_tried=True,
+            )
             suspect = None
             if find_suspect:
                 suspects = diagnose(
-                    record, max_effects=1, published_taus=published, published_lines=lines
+                    record,
+                    max_effects=1,
+                    published_taus=published,
+                    published_lines=lines,
+                    published_tried=True,
                 ).suspects
                 suspect = next((item for item in suspects if item.significant), None)
         judged: Callable[..., OutputModel] = (

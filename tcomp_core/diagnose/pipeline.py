@@ -405,6 +405,7 @@ def _base_fit(
     record: Record,
     published_taus: tuple[float, float] | None = None,
     published_lines: Sequence[ForeignLine] = (),
+    published_tried: bool = False,
 ) -> tuple[Evaluator, Model, ModelFit, FailureAnalysis]:
     """Prepare the record, fit and score the base model, and say where it fails.
 
@@ -420,7 +421,7 @@ def _base_fit(
     set with: the base fit's τ minimises that disagreement, and taken instead it refused a
     conduction that halved the gas error (campaign draw 467, 68.6 → 33.4 %).
     """
-    if published_taus is None:
+    if published_taus is None and not published_tried:
         plain = default_estimate(record)
         if plain is not None:
             published_taus, published_lines = (float(plain.tau1), float(plain.tau2)), plain.lines
@@ -447,6 +448,7 @@ def diagnose(
     max_effects: int = MAX_EFFECTS,
     published_taus: tuple[float, float] | None = None,
     published_lines: Sequence[ForeignLine] = (),
+    published_tried: bool = False,
 ) -> Diagnosis:
     """Compare the first-order model with a record, find where it fails and what is missing.
 
@@ -470,6 +472,9 @@ def diagnose(
         The lines that path takes off the channel carrying one
         (:attr:`tcomp_core.estimators.Estimate.lines`), so that its first order is measured
         as it publishes it (with ``published_taus`` None, those of the estimate made here).
+    published_tried : bool
+        The caller ran that path already: ``published_taus`` None then means it refused the
+        record, and it is not estimated again.
 
     Returns
     -------
@@ -483,7 +488,9 @@ def diagnose(
         If not even the base model can be fitted.
     """
     candidates = check_effect_names(candidates)
-    evaluator, model, base, failure = _base_fit(record, published_taus, published_lines)
+    evaluator, model, base, failure = _base_fit(
+        record, published_taus, published_lines, published_tried
+    )
     staircase = _staircase(evaluator, model, base, candidates, max_effects)
     steps = staircase.steps
     steps[-1] = evaluator.refit_whole(steps[-1], partial(fit_other_form, evaluator))
@@ -509,13 +516,14 @@ def fit_effects(
     *,
     published_taus: tuple[float, float] | None = None,
     published_lines: Sequence[ForeignLine] = (),
+    published_tried: bool = False,
 ) -> Diagnosis:
     """Fit the base model plus a chosen set of effects, added in the order given.
 
     Every step is scored like :func:`diagnose` scores it; ``steps`` holds the base model and
     one fit per effect added, ``suspects`` the same fits as suspects, and ``verdict`` the
-    last effect (``"none"`` for an empty set). ``published_taus`` and ``published_lines`` as
-    for :func:`diagnose`.
+    last effect (``"none"`` for an empty set). ``published_taus``, ``published_lines`` and
+    ``published_tried`` as for :func:`diagnose`.
 
     Raises
     ------
@@ -523,7 +531,9 @@ def fit_effects(
         If a fit fails.
     """
     effects = check_effect_names(effects)
-    evaluator, model, base, failure = _base_fit(record, published_taus, published_lines)
+    evaluator, model, base, failure = _base_fit(
+        record, published_taus, published_lines, published_tried
+    )
     steps, suspects = [base], []
     for name in effects:
         try:
