@@ -139,6 +139,32 @@ def test_a_suspect_that_clearly_beats_a_significant_one_is_significant_too():
     assert not marked[0].significant
 
 
+def test_a_runner_up_staircase_is_abandoned_only_where_it_cannot_win():
+    from tcomp_core.diagnose.pipeline import _cannot_end_better, _clearly_better
+
+    taus = {"tau1": 0.02, "tau2": 0.1}
+    blocks = [0.3, 0.25, 0.3, 0.2, 0.3]
+
+    def fit(error, effects, scale=1.0):
+        raw = 1.0 + error
+        made = _fit(error, raw, 1.0, [b * scale for b in blocks], taus)
+        return dataclasses.replace(made, effects=effects)
+
+    explained = fit(0.3, ("delay",))  # below half a noise floor: nothing longer is significant
+    # Even a perfect model with more effects is not significant against it ...
+    perfect = dataclasses.replace(fit(0.0, ("property", "delay"), 0.0), raw_error_pct=1.0)
+    assert not _clearly_better(perfect, explained, 1.0)
+    assert _cannot_end_better(fit(5.0, ("property", "delay")), explained, 1.0)
+    # ... so a staircase as long as it is left only if its step is not clearly better ...
+    assert _cannot_end_better(fit(10.8, ("property",), 20.0), explained, 1.0)
+    clearly = fit(0.1, ("property",), 0.5)
+    assert _clearly_better(clearly, explained, 1.0)
+    assert not _cannot_end_better(clearly, explained, 1.0)
+    # ... and a shorter one, or one against a model not explained to its noise, is followed.
+    assert not _cannot_end_better(fit(10.8, ()), fit(0.3, ("delay", "property")), 1.0)
+    assert not _cannot_end_better(fit(5.0, ("property", "delay")), fit(0.6, ("delay",)), 1.0)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("kind", "dt", "delay_s", "seed"),
