@@ -3,8 +3,8 @@
 The node runs as a user starts it (``--params-file config/compensator.yaml``: its parameters
 come from rclpy's global arguments, the Kalman filter's signal model is fitted in a worker
 process), the replay node publishes the bag at real time, and the gas the node publishes is
-scored against the bag's true gas (``tref/temperature``): over the second half, with the
-worker's fitted signal model in place (when it lands depends on the machine's load), within
+scored against the bag's true gas (``tref/temperature``): over the second half from the moment
+the worker's fitted signal model is in place (when it lands depends on the machine's load), within
 1.5× the error of the offline causal filter on the same record (``tcomp reconstruct
 --reconstruction kalman-causal``), and over the whole record far from Eq. (7)'s.
 """
@@ -32,7 +32,11 @@ REPLAY_RATE = 0.25
 
 
 def _replay_into_node(bag: Path, rate: float, timeout_s: float):
-    """Gas (stamp ns -> °C) the node published and its last diagnostics, replaying ``bag``."""
+    """Gas the node published and its diagnostics, replaying ``bag``.
+
+    Returns the gas (stamp ns -> °C), the last diagnostics' values, and the newest gas stamp
+    received when the diagnostics first named a fitted signal model (None if none did).
+    """
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.context import Context
@@ -69,7 +73,16 @@ def _replay_into_node(bag: Path, rate: float, timeout_s: float):
 
     qos = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE)
     node.create_subscription(Temperature, "gas_temperature", keep, qos)
-    node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: last.append(m), 10)
+    landed: list[int] = []
+
+    def report(message):
+        last.append(message)
+        values = {kv.key: kv.value for kv in message.status[0].values}
+        fitted = values.get("signal_model") and "interim" not in values["signal_model"]
+        if fitted and not landed and gas:
+            landed.append(max(gas))
+
+    node.create_subscription(DiagnosticArray, "/diagnostics", report, 10)
     executor = make_executor(context)
     executor.add_node(node)
     executor.add_node(replay)
@@ -89,7 +102,7 @@ def _replay_into_node(bag: Path, rate: float, timeout_s: float):
         replay.destroy_node()
         rclpy.try_shutdown(context=context)
     values = {kv.key: kv.value for kv in last[-1].status[0].values} if last else {}
-    return gas, values
+    return gas, values, (landed[0] if landed else None)
 
 
 @pytest.mark.slow
@@ -98,9 +111,10 @@ def test_the_shipped_yaml_node_publishes_a_gas_near_the_offline_causal_filter():
     record = read_bag(bag)
     stamps = record.stamps_ns
     held = record.ref[:-1]  # simulated with the gas held over each interval (bags/README.md)
-    gas, values = _replay_into_node(bag, rate=REPLAY_RATE, timeout_s=60.0)
+    gas, values, landed_ns = _replay_into_node(bag, rate=REPLAY_RATE, timeout_s=60.0)
     assert values["reconstruction"] == "kalman" and values["signal_model"]
     assert "interim" not in values["signal_model"]  # the fitted model landed during the replay
+    assert landed_ns is not None and landed_ns < stamps[-stamps.size // 5]
     published = np.array(sorted(gas))
     index = np.searchsorted(stamps, published)
     assert published.size >= 0.999 * (stamps.size - 1)  # every pair but the last
@@ -110,9 +124,11 @@ def test_the_shipped_yaml_node_publishes_a_gas_near_the_offline_causal_filter():
     eq7 = reconstruct(record.tc1, record.tc2, record.dt, found.tau1, found.tau2).gas
     # Until the worker's fitted signal model lands the node filters with an interim one; how
     # much of the record that covers depends on the machine's load (on a busy 2-core machine
-    # the node's whole-record error came out 7.5 % against 1.2 % alone). The second half is
-    # scored against the offline causal filter, the whole record against Eq. 7.
-    late = index >= stamps.size // 2
+    # the node's whole-record error came out 7.5 % against 1.2 % alone, and with three test
+    # workers on two cores the model landed inside the second half: 6.5 % there). What
+    # follows the landing, and the second half at the earliest, is scored against the offline
+    # causal filter; the whole record against Eq. 7.
+    late = (index >= stamps.size // 2) & (published > landed_ns)
     node_late = reconstruction_error_percent(held[index[late]], node_gas[late])
     causal_late = reconstruction_error_percent(held[index[late]], offline[index[late]])
     node_error = reconstruction_error_percent(held[index], node_gas)
