@@ -109,28 +109,20 @@ def run_job(
         plain = default_estimate(record)
         published = None if plain is None else (float(plain.tau1), float(plain.tau2))
         lines = () if plain is None else plain.lines
+        diagnosed = partial(
+            diagnose, published_taus=published, published_lines=lines, published_tried=True
+        )
+        fitted_with = partial(
+            fit_effects, published_taus=published, published_lines=lines, published_tried=True
+        )
         if effects is None:
-            fitted = diagnose(
-                record, published_taus=published, published_lines=lines, published_tried=True
-            )
+            fitted = diagnosed(record)
             suspect = next((item for item in fitted.suspects if item.significant), None)
         else:
-            fitted = fit_effects(
-                record,
-                effects,
-                published_taus=published,
-                published_lines=lines,
-                published_tried=True,
-            )
+            fitted = fitted_with(record, effects)
             suspect = None
             if find_suspect:
-                suspects = diagnose(
-                    record,
-                    max_effects=1,
-                    published_taus=published,
-                    published_lines=lines,
-                    published_tried=True,
-                ).suspects
+                suspects = diagnosed(record, max_effects=1).suspects
                 suspect = next((item for item in suspects if item.significant), None)
         judged: Callable[..., OutputModel] = (
             partial(output_model_with_fallback, record)
