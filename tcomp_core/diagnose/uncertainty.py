@@ -34,7 +34,7 @@ smoothed covariance, penalties in, also bounds the misfit and what only a prior 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,6 +49,7 @@ __all__ = [
     "parameter_covariance",
     "parameter_uncertainty",
     "parameters_at_bound",
+    "sandwich_covariance",
 ]
 
 #: Two-sided 95 % quantile of the normal distribution.
@@ -182,6 +183,44 @@ class ParameterCovariance:
             intervals[name] = (math.exp(lo), math.exp(hi)) if log_scale else (float(lo), float(hi))
         return intervals
 
+    def with_block(self, other: ParameterCovariance) -> ParameterCovariance:
+        """The covariance with ``other``'s parameters taken from ``other``.
+
+        For parameters estimated by another criterion (:meth:`tcomp_core.diagnose.heldout.
+        Evaluator.polish`): their variances and covariances among themselves are ``other``'s,
+        those with the rest are unknown and taken as zero. Names of ``other`` that this one
+        does not search are ignored.
+        """
+        shared = [name for name in other.names if name in self.names]
+        if not shared:
+            return self
+        mine = [self.names.index(name) for name in shared]
+        theirs = [other.names.index(name) for name in shared]
+
+        def merged(
+            matrix: NDArray[np.float64] | None, block: NDArray[np.float64] | None
+        ) -> NDArray[np.float64] | None:
+            if matrix is None or block is None:
+                return None
+            result = matrix.copy()
+            result[mine, :] = 0.0
+            result[:, mine] = 0.0
+            result[np.ix_(mine, mine)] = block[np.ix_(theirs, theirs)]
+            return result
+
+        x = self.x.copy()
+        x[mine] = other.x[theirs]
+        at_bound = {n for n in self.at_bound if n not in shared} | {
+            n for n in other.at_bound if n in shared
+        }
+        return replace(
+            self,
+            x=x,
+            matrix=merged(self.matrix, other.matrix),
+            noise_matrix=merged(self.noise_matrix, other.noise_matrix),
+            at_bound=tuple(n for n in self.names if n in at_bound),
+        )
+
     def correlation(self, first: str, second: str) -> float:
         """Correlation of two parameters' estimates (NaN when unknown)."""
         if self.matrix is None or first not in self.names or second not in self.names:
@@ -204,11 +243,36 @@ def parameter_covariance(
     """
     problem = model.problem(tc1, tc2, context, rows)
     x = np.clip(problem.pack(model.params), problem.lower, problem.upper)
+    return sandwich_covariance(
+        problem, x, problem.residuals(x), problem.jacobian(x), problem.n_rows
+    )
+
+
+def sandwich_covariance(
+    problem: LeastSquaresProblem,
+    x: NDArray[np.float64],
+    residuals: NDArray[np.float64],
+    jacobian: NDArray[np.float64],
+    n: int,
+) -> ParameterCovariance:
+    """The sandwich covariance of the estimate ``x`` of ``problem``'s parameters.
+
+    Parameters
+    ----------
+    problem : LeastSquaresProblem
+        Its parameters (names, bounds) in the search coordinates.
+    x : ndarray, shape (P,)
+        The estimate.
+    residuals : ndarray, shape (n + penalties,)
+        The criterion's residuals at ``x``: ``n`` data residuals in time order, then penalty
+        rows. The criterion need not be ``problem``'s own (a free-run error's, for one).
+    jacobian : ndarray, shape (n + penalties, P)
+        Their Jacobian at ``x``.
+    n : int
+        Number of data residuals.
+    """
     names = tuple(spec.name for spec in problem.specs)
     at_bound = _at_bound(problem, x)
-    residuals = problem.residuals(x)
-    jacobian = problem.jacobian(x)
-    n = problem.n_rows
     bread = jacobian.T @ jacobian
     try:
         inverse = np.linalg.inv(bread)

@@ -226,6 +226,20 @@ class Effect:
     #: each, the other parameters fitted by the cross-relation in between (see
     #: :func:`tcomp_core.diagnose.ranking.fit_with_effect`).
     output_error_params: ClassVar[tuple[str, ...]] = ()
+    #: The setting (0 or 1, carried in the parameters among :attr:`setting_choices`' settings,
+    #: which give it 0) that marks the effect's parameters as refined with τ on the free-run
+    #: (output) error of the slow sensor on the estimation blocks, the error the held-out test
+    #: scores (:meth:`tcomp_core.diagnose.heldout.Evaluator.polish`); such parameters are then
+    #: held as output-error parameters are. "" for an effect never refined. For a τ that moves
+    #: through the record the cross-relation is biased by the noise its derivatives amplify: it
+    #: lowers its own residual by shrinking τ where the readings are noisiest, so that on noisy
+    #: engine pulses its velocity fit simulated the slow sensor worse than constant τ did
+    #: (held-out error 2.5 → 3.9 %) where the same spline refined on the free-run error fell to
+    #: 0.8 %. Where the cross-relation's fit does simulate better, the refined one is no better
+    #: (held-out 1.3 → 3.6 % on a rotating disk), so it is offered only where the fit
+    #: simulates worse than the model without the effect, and kept when the held-out blocks
+    #: prefer it (:func:`tcomp_core.diagnose.ranking.fit_with_effect`).
+    free_run_setting: ClassVar[str] = ""
     #: Whether the other parameters move with an output-error parameter, so that the search
     #: refits them at each of its trials (costly) instead of once at the end.
     output_error_coupled: ClassVar[bool] = False
@@ -307,6 +321,17 @@ class Effect:
         that involve several parameters, e.g. conduction's conductance ratio at the fit's τ.
         """
         return ""
+
+    def unseen_parameters(self, context: FitContext, samples: NDArray[np.bool_]) -> frozenset[str]:
+        """Parameters that act mostly outside ``samples`` (shape (N,)); none by default.
+
+        A criterion scored on those samples alone cannot decide them.
+        """
+        return frozenset()
+
+    def refined_on_free_run(self, params: Mapping[str, float]) -> bool:
+        """Whether ``params`` mark this effect as refined on the free-run error."""
+        return bool(self.free_run_setting) and params.get(self.free_run_setting, 0.0) == 1.0
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         """The effect's fitted parameters and their bounds for this record."""

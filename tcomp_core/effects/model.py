@@ -849,7 +849,8 @@ class Model:
         index = {spec.name: i for i, spec in enumerate(specs)}
         for effect in self.instances:
             for name, column in effect.log_factor_jacobian(context).items():
-                columns[index[name]] = column[:-1][rows]  # interval k uses s(t_k)
+                if name in index:  # a held parameter has no column
+                    columns[index[name]] = column[:-1][rows]  # interval k uses s(t_k)
         return columns
 
     def _valid_rows(self, n: int, context: FitContext) -> NDArray[np.bool_]:

@@ -28,6 +28,9 @@ _DEGREE = 3
 #: interpolates the held-out blocks better when s(t) changes slowly, the softer one lets a
 #: fast, strong change (a period of a few knot spacings) through.
 SMOOTHNESS_CHOICES = (0.05, 0.01)
+#: Least share of a spline coefficient's basis weight on the scored samples for a free-run
+#: refinement to search it (:meth:`Velocity.unseen_parameters`).
+UNSEEN_SHARE = 0.5
 #: The simulator's flow: τ ∝ v^-m, the speed's relative swing and its period, s.
 SIMULATED_EXPONENT = 0.6
 SIMULATED_DEPTH = 0.4
@@ -60,7 +63,10 @@ class Velocity(Effect):
     uses_sample_times = True
     local_parameters = True
     summary = "a changing flow velocity scales both time constants together (spline of log s(t))"
-    setting_choices = tuple({"velocity_smoothness": value} for value in SMOOTHNESS_CHOICES)
+    setting_choices = tuple(
+        {"velocity_smoothness": value, "velocity_free_run": 0.0} for value in SMOOTHNESS_CHOICES
+    )
+    free_run_setting = "velocity_free_run"
     simulation_forms = ("sine", "steps")
 
     def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
@@ -159,6 +165,18 @@ class Velocity(Effect):
         return (
             "velocity: the level of s(t) trades with tau1 and tau2, so s(t) is normalised to a "
             "geometric mean of 1 and the time constants are the record's geometric means"
+        )
+
+    def unseen_parameters(self, context: FitContext, samples: NDArray[np.bool_]) -> frozenset[str]:
+        """Coefficients whose basis function has less than half its weight on ``samples``.
+
+        Outside them (the free run's start-up transient) a coefficient moves s(t) where
+        nothing is scored, and through the normalisation of s(t) it trades with τ.
+        """
+        design = self._design(context)[:, 1:]
+        share = design[samples].sum(axis=0) / np.maximum(design.sum(axis=0), 1e-300)
+        return frozenset(
+            f"velocity_{j}" for j, value in enumerate(share, start=1) if value < UNSEEN_SHARE
         )
 
     def log_factor_jacobian(self, context: FitContext) -> dict[str, NDArray[np.float64]]:
