@@ -79,7 +79,13 @@ def test_diagnose_names_the_hidden_effect_and_the_error_falls(effect, kind, taus
         (s.effect, s.error_pct, s.significant) for s in found.suspects
     ]
     assert found.suspects[0].effect == effect
-    assert found.base.error_pct >= 2.0 * found.final.error_pct
+    if effect == "noise_ratio":
+        # The base model takes the default path's τ where they simulate better: ml-eiv
+        # measures φ itself, so unequal noise leaves no error for the refit to take.
+        assert found.base.tau1 == pytest.approx(sim.tau1, rel=0.05)
+        assert found.base.tau2 == pytest.approx(sim.tau2, rel=0.05)
+    else:
+        assert found.base.error_pct >= 2.0 * found.final.error_pct
     assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
     assert found.final.effects == (effect,)

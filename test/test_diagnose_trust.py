@@ -5,6 +5,8 @@ physics simulator (test/detailed_physics.py)."""
 import dataclasses
 import math
 import re
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -291,6 +293,25 @@ def test_clean_engine_pulses_give_none_with_the_ordinary_physics_named(rate_hz, 
     assert found.final.error_pct <= found.base.error_pct < 0.3
     assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.02)
     assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.02)
+
+
+@pytest.mark.slow
+def test_a_noisy_clean_record_is_judged_against_the_first_order_that_simulates_it_best():
+    # Campaign draw 2873 (clean engine pulses, 2 kHz, K = 3.3 %, a class-2 pair): the
+    # cross-relation's noise bias put the base model's tau 10-12 % short, its held-out error
+    # at 2.2 % against 0.09 % at ml-eiv's tau, and a speed varying over the record took the
+    # verdict. The default path's tau simulate the slow sensor better: they are the base.
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import campaign_draws
+
+    item = campaign_draws.draw(2873)
+    assert not item.effects and item.noise_percent > 3.0
+    record, truth = campaign_draws.simulate(item)
+    found = diagnose(record)
+    assert found.verdict == "none", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+    assert found.base.error_pct < 0.2
+    assert found.base.tau1 == pytest.approx(truth["tau1"], rel=0.02)
+    assert found.base.tau2 == pytest.approx(truth["tau2"], rel=0.02)
 
 
 @pytest.mark.slow

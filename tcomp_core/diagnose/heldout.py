@@ -125,6 +125,10 @@ class Evaluator:
         also measures the final model's change against first order there.
     published_lines : tuple of ForeignLine
         The lines that path takes off the channel carrying one, with those τ.
+    base_taus_published : bool
+        The base model's τ are the default path's, chosen over the cross-relation fit's by
+        the free-run error: the base model keeps them when refitted on the whole record
+        (:meth:`refit_whole`).
     """
 
     data: PreparedData
@@ -135,6 +139,7 @@ class Evaluator:
     start_taus_s: tuple[float, float] | None = None
     published_taus_s: tuple[float, float] | None = None
     published_lines: tuple[ForeignLine, ...] = ()
+    base_taus_published: bool = False
     _sos: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -384,7 +389,10 @@ class Evaluator:
         """
         chosen = Model(fit.effects, fit.params)
         held = self.chosen_by_free_run(chosen)
-        model = self.refit_model(chosen, held)
+        # The default path's τ taken as the base model stay: refitted, they would return to
+        # the cross-relation's bias the free run chose them over.
+        published_base = self.base_taus_published and not chosen.effects
+        model = chosen if published_base else self.refit_model(chosen, held)
         polished = frozenset().union(
             *(
                 self.polished_names(model, e.name)
