@@ -315,6 +315,26 @@ def test_a_noisy_clean_record_is_judged_against_the_first_order_that_simulates_i
 
 
 @pytest.mark.slow
+def test_a_line_the_default_path_notches_is_said_when_the_base_takes_its_tau():
+    # Campaign draw 3276: 60 Hz mains on tc2 of 5 kHz steps. The cross-relation base put τ1 on
+    # its 6 s bound; ml-eiv, its lines notched, is within 1 % and leaves the line no error to
+    # explain, so interference is no verdict: the diagnosis still names the line.
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    import campaign_draws
+
+    from tcomp_core.diagnose.pipeline import _base_fit, _notes
+
+    item = campaign_draws.draw(3276)
+    assert item.effects == ("interference",)
+    record, truth = campaign_draws.simulate(item)
+    evaluator, _, base, _ = _base_fit(record)
+    assert evaluator.base_taus_published
+    assert base.tau1 == pytest.approx(truth["tau1"], rel=0.02)
+    lines = [note for note in _notes(evaluator.data, evaluator) if "Hz line" in note]
+    assert any(note.startswith("tc2 carries a 60") for note in lines), lines
+
+
+@pytest.mark.slow
 def test_a_delay_on_engine_pulses_is_not_taken_for_its_alias_one_period_away():
     # 9 ms between the junctions on 40 Hz pulses (25 ms period): the delay less one period
     # fits the cross-relation about as well with tau 50 % long; a coarse scan of trial delays
