@@ -280,7 +280,7 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
                 )
             else:
                 fitted = evaluator.fit(start, hold=evaluator.chosen_by_free_run(model))
-            candidates = [fitted]
+            candidates: list[tuple[Model, ModelFit | None]] = [(fitted, None)]
             # Refined only where the cross-relation misleads: its fit simulates the slow sensor
             # worse than the model without the effect (on fresh draws where it did better,
             # the refined fit, though chosen by the held-out blocks, moved τ and made the gas
@@ -295,13 +295,14 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
                 if refined is not flagged:
                     if parent_tuned is None:
                         parent_tuned = evaluator.evaluate(evaluator.polish(model, TAUS, rows))
-                    if beats_clearly(evaluator.evaluate(refined), parent_tuned):
-                        candidates.append(refined)
+                    scored = evaluator.evaluate(refined)
+                    if beats_clearly(scored, parent_tuned):
+                        candidates.append((refined, scored))
         except (TcompError, ValueError, np.linalg.LinAlgError) as exc:
             failure = exc
             continue
-        for candidate in candidates:
-            fit = evaluator.evaluate(candidate)
+        for candidate, scored_fit in candidates:
+            fit = evaluator.evaluate(candidate) if scored_fit is None else scored_fit
             if best is None or fit.error_pct < best[1].error_pct:
                 best = (candidate, fit)
     if best is None:
