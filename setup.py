@@ -50,6 +50,7 @@ setup(
         "tqdm>=4.60",  # progress bar of tcomp process
         "dask[distributed]>=2024.1",  # tcomp campaign: local or remote cluster
         "pyarrow>=15",  # tcomp campaign's table as Parquet
+        "numba>=0.60",  # the radiating and level-dependent lag's loop in every free-run fit
     ],
     extras_require={
         "ros": ROS_WHEELS,

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from tcomp_core.effects.base import KELVIN
 from tcomp_core.effects.chain import SHIFT_HALF_TAPS, _fin_filters, fractional_shift
 from tcomp_core.effects.conduction import FIN_TERMS, fin_filter, fin_kappa, fin_length
 
@@ -66,3 +67,33 @@ def test_fractional_shift_equals_the_explicit_stencil_sum(shift):
             expected[k] = float(np.dot(weights, values[stencil]))
     assert np.array_equal(np.isnan(shifted), np.isnan(expected))
     assert np.allclose(shifted, expected, rtol=0, atol=1e-12, equal_nan=True)
+
+
+@pytest.mark.parametrize("radiating", [False, True])
+@pytest.mark.parametrize("film", [None, 1.0, 0.8])
+def test_the_compiled_lag_loops_step_as_the_python_recurrence(radiating, film):
+    """numba's loops (tcomp_core.effects.recurrence) against the same functions run by Python."""
+    from tcomp_core.effects import recurrence
+
+    rng = np.random.default_rng(17)
+    n = 3000
+    drive = 600.0 + 150.0 * rng.standard_normal(n)
+    poles = np.exp(-1e-3 / (0.02 * (1.0 + 0.4 * np.sin(np.arange(n) / 97.0))))
+    r, wall4 = (2e-12, 350.0**4) if radiating else (0.0, 0.0)
+    expected = np.empty(n + 1)
+    if film is None:
+        recurrence._lag_steps(drive, poles, 580.0, r, wall4, expected)
+        found = recurrence.lag_steps(drive, poles, 580.0, r, wall4)
+    else:
+        level = (0.6, 850.0, drive + 3.0, 0.5, film)
+        recurrence._level_lag_steps(drive, poles, 580.0, r, wall4, *level, expected)
+        found = recurrence.level_lag_steps(drive, poles, 580.0, r, wall4, level)
+    assert recurrence._kernels()[0] is not recurrence._lag_steps  # compiled, not the fallback
+    np.testing.assert_allclose(found, expected, rtol=1e-13, atol=0.0)
+    # the recurrence itself, one step written out
+    k = n // 2
+    pole = poles[k] if film is None else None
+    if pole is not None:
+        loss = r * ((expected[k] + KELVIN) ** 4 - wall4)
+        step = pole * expected[k] + (1.0 - pole) * (drive[k] - loss)
+        assert found[k + 1] == pytest.approx(step, rel=1e-14)

@@ -23,6 +23,7 @@ ROSDEP_KEYS = {
     "ruamel": "python3-ruamel.yaml",
     "rosbags": "python3-rosbags-pip",
     "tqdm": "python3-tqdm",
+    "numba": "python3-numba",
     "zstandard": None,
     "lz4": None,
     "distributed": None,

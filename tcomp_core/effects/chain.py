@@ -34,6 +34,7 @@ from scipy import signal
 from ..sections import sosfilt_from, zero_phase
 from .base import KELVIN
 from .conduction import fin_filter
+from .recurrence import lag_steps, level_lag_steps
 
 __all__ = [
     "SensorChain",
@@ -656,43 +657,10 @@ def _lag_loop(
     With ``level = (exponent, T_ref, film_drive, w, c)`` the pole of step k is
     a_k^(1/(T/T_ref)^exponent) at the film temperature T = T_ref + c (y[k] + K − T_ref) +
     w (film_drive[k] − y[k]) (τ varying with the level; :class:`SensorChain`'s level and film
-    weights), ``a`` then holding the poles without that factor.
+    weights), ``a`` then holding the poles without that factor. Compiled loops
+    (:mod:`tcomp_core.effects.recurrence`): every free-run simulation of a radiating or
+    level-dependent sensor runs one.
     """
-    # One loop per case, its constants in locals: the recurrence runs once per sample in
-    # Python, for every free-run simulation of a radiating or level-dependent sensor.
-    out = [start]
-    append = out.append
-    y = start
-    offset = KELVIN
-    if level is not None:  # τ at the film temperature, between the state and the gas
-        exponent, reference, weight, own = level[0], level[1], level[3], level[4]
-        # T̄ + c (T − T̄) written so that c = 1 (the film) rounds as T itself does.
-        anchor = 0.0 if own == 1.0 else (1.0 - own) * reference
-        for u, pole, film_u in zip(drive.tolist(), a.tolist(), level[2].tolist(), strict=True):
-            kelvin = y + offset
-            film = (own * kelvin + anchor if anchor else kelvin) + weight * (film_u - y)
-            # min(max(film / reference, 0.5), 2.0), as in SensorChain.poles (NaN kept)
-            ratio = film / reference
-            ratio = 0.5 if ratio < 0.5 else ratio
-            ratio = 2.0 if ratio > 2.0 else ratio
-            pole = pole ** (1.0 / ratio**exponent)
-            loss = r * (kelvin**4 - wall4) if r else 0.0
-            y = pole * y + (1.0 - pole) * (u - loss)
-            append(y)
-    elif r and a.size and bool(np.all(a == a[0])):  # a constant τ: its pole once
-        pole = float(a[0])
-        rest = 1.0 - pole
-        for u in drive.tolist():
-            kelvin = y + offset
-            y = pole * y + rest * (u - r * (kelvin**4 - wall4))
-            append(y)
-    elif r:
-        for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
-            kelvin = y + offset
-            y = pole * y + (1.0 - pole) * (u - r * (kelvin**4 - wall4))
-            append(y)
-    else:
-        for u, pole in zip(drive.tolist(), a.tolist(), strict=True):
-            y = pole * y + (1.0 - pole) * u  # u − 0.0 is u
-            append(y)
-    return np.asarray(out)
+    if level is not None:
+        return level_lag_steps(drive, a, start, r, wall4, level)
+    return lag_steps(drive, a, start, r, wall4)
