@@ -396,11 +396,22 @@ def campaign_row(index: int) -> dict:
     return row
 
 
-def _single_threaded() -> None:
+#: The BLAS libraries' thread counts: read once, when numpy loads them.
+BLAS_THREADS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def _one_blas_thread() -> None:
+    """Run this script again with one BLAS thread per process unless it has that already.
+
+    The draws run ``--jobs`` at a time in forked processes that share the parent's BLAS,
+    whose thread count is fixed when numpy loads it: setting it in a worker comes too late.
+    """
     import os
 
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[name] = "1"
+    if all(os.environ.get(name) == "1" for name in BLAS_THREADS):
+        return
+    environment = {**os.environ, **dict.fromkeys(BLAS_THREADS, "1")}
+    os.execve(sys.executable, [sys.executable, *sys.argv], environment)
 
 
 def run_campaign(count: int, start: int, jobs: int, out: Path) -> list[dict]:
@@ -417,7 +428,7 @@ def run_campaign(count: int, start: int, jobs: int, out: Path) -> list[dict]:
             row = json.loads(line)
             done[row["index"]] = row
     todo = [i for i in range(start, start + count) if i not in done]
-    with out.open("a") as sink, get_context("fork").Pool(jobs, _single_threaded) as pool:
+    with out.open("a") as sink, get_context("fork").Pool(jobs) as pool:
         for row in pool.imap_unordered(campaign_row, todo):
             sink.write(json.dumps(row) + "\n")
             sink.flush()
@@ -569,6 +580,7 @@ def main() -> None:
         if args.summarise:
             summarise_campaign(read_campaign(args.out, args.campaign, args.start))
             return
+        _one_blas_thread()
         summarise_campaign(run_campaign(args.campaign, args.start, args.jobs, args.out))
         return
     print(
