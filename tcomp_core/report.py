@@ -327,13 +327,19 @@ def _where(diagnosis: Diagnosis) -> str:
 
 def _suspect_rows(suspects: Sequence[Suspect]) -> list[list[object]]:
     return [
-        [s.effect, s.error_pct, s.evidence, "yes" if s.significant else "no", s.signature]
+        [
+            s.effect,
+            s.error_pct,
+            s.evidence,
+            "yes" if s.significant else f"no: {s.refusal}" if s.refusal else "no",
+            s.signature,
+        ]
         for s in suspects
     ]
 
 
 def _suspects(diagnosis: Diagnosis) -> str:
-    header = ["effect", "held-out error (%)", "evidence", "significant", "signature"]
+    header = ["effect", "held-out error (%)", "evidence", "significant (or why not)", "signature"]
     parts = []
     for number, suspects in enumerate(diagnosis.rounds, start=1):
         parts.append(f"<h3>Round {number} (best first)</h3>")

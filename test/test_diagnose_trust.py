@@ -94,6 +94,51 @@ def test_significance_needs_a_fall_above_the_floor_inside_the_physical_range():
     assert is_significant(dataclasses.replace(small, noise_floor_pct=0.5), smaller)
 
 
+def test_each_refusal_names_the_rule_that_failed_with_its_figures():
+    from tcomp_core.diagnose.ranking import significance_refusal
+
+    taus = {"tau1": 0.02, "tau2": 0.1}
+    with_gain = {**taus, "gain": 0.8, "offset_c": 3.7}
+    current = _fit(5.0, 5.2, 1.0, [5.0, 5.5, 4.8, 5.2, 5.1], taus)
+    better = dict(error=1.0, raw=1.4, floor=1.0, blocks=[1.2, 1.5, 1.1, 1.3, 1.4])
+    assert significance_refusal(current, _fit(**better, params=with_gain)) == ""
+    on_bound = significance_refusal(current, _fit(**better, params=with_gain, at_bound=("gain",)))
+    assert "gain = 0.8" in on_bound and "edge of its physical range" in on_bound
+    small = significance_refusal(current, _fit(4.6, 4.8, 1.0, [4.6] * 5, with_gain))
+    assert "falls 7.69 % (5.2 -> 4.8 %), 20 % asked" in small
+    patchy = significance_refusal(current, _fit(1.0, 1.4, 1.0, [1.0, 6.0, 6.0, 1.0, 1.0], taus))
+    assert "in 60 % of the validation blocks, 70 % asked" in patchy
+    # Every refusal is a verdict of is_significant and the other way round.
+    for fit in (_fit(**better, params=with_gain), _fit(4.6, 4.8, 1.0, [4.6] * 5, with_gain)):
+        assert is_significant(current, fit) == (significance_refusal(current, fit) == "")
+
+
+def test_the_refused_suspects_above_the_taken_one_are_said_with_their_reason():
+    from tcomp_core.cli.diagnosis import _refused_ahead
+    from tcomp_core.diagnose.result import Suspect
+
+    def suspect(name, evidence, significant, refusal=""):
+        return Suspect(
+            effect=name,
+            error_pct=1.0,
+            evidence=evidence,
+            signature="",
+            significant=significant,
+            refusal=refusal,
+        )
+
+    ranked = [
+        suspect("calibration", 0.9, False, "its fit puts gain = 0.8 on the edge"),
+        suspect("delay", 0.1, False, "the raw held-out error falls 5 %"),
+        suspect("velocity", -0.2, False, "the raw held-out error falls -20 %"),
+        suspect("conduction", 0.5, True),
+        suspect("radiation", 0.05, False, "below materiality"),
+    ]
+    assert [s.effect for s in _refused_ahead(ranked)] == ["calibration", "delay"]
+    assert Suspect.summary(ranked[0])["refusal"] == "its fit puts gain = 0.8 on the edge"
+    assert Suspect.summary(ranked[3])["refusal"] == ""
+
+
 def test_a_suspect_that_clearly_beats_a_significant_one_is_significant_too():
     from tcomp_core.diagnose.ranking import _dominant
     from tcomp_core.diagnose.result import Suspect

@@ -10,7 +10,10 @@ from typing import TYPE_CHECKING, Any
 from .common import add_force_argument
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     from ..diagnose import Diagnosis
+    from ..diagnose.result import Suspect
     from ..diagnose.windowed import WindowedDiagnosis
 
 __all__ = [
@@ -78,6 +81,9 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
         best = suspects[0] if suspects else None
         if best is not None:
             lines.append(f"  {best.effect}: {best.signature}")
+        lines.extend(
+            f"  {s.effect} not significant: {s.refusal}" for s in _refused_ahead(suspects)
+        )
     lines.append("error staircase (held-out error):")
     for step in diagnosis.steps:
         label = "base" if not step.effects else "+ " + " + ".join(step.effects)
@@ -182,3 +188,17 @@ def format_windowed(result: WindowedDiagnosis) -> str:
     for row in rows:
         lines.extend(f"note: window {row.index + 1}: {note}" for note in row.notes)
     return "\n".join(lines)
+
+
+def _refused_ahead(suspects: Sequence[Suspect]) -> list[Suspect]:
+    """The suspects that lowered the error, ranked above any significant one and refused.
+
+    What a user asks about: a better held-out error that was still not taken.
+    """
+    refused = []
+    for suspect in suspects:
+        if suspect.significant:
+            break
+        if suspect.evidence > 0.0 and suspect.refusal:
+            refused.append(suspect)
+    return refused

@@ -151,8 +151,23 @@ def is_significant(
     exhaust record with tc2 3.8 samples late the delay's refit, 69 → 49 %, failed the block
     rules while conduction took the verdict with τ1 at 0.1 ms).
     """
+    return not significance_refusal(current, candidate, effect, phi_hat, channel_phase_deg)
+
+
+def significance_refusal(
+    current: ModelFit,
+    candidate: ModelFit,
+    effect: str = "",
+    phi_hat: float = 1.0,
+    channel_phase_deg: float = math.nan,
+) -> str:
+    """Why ``candidate`` is not significant against ``current``, in words; "" when it is.
+
+    The rules of :func:`is_significant`, the first that fails named with its figures (what a
+    user reads beside a suspect that lowered the error and was still not taken).
+    """
     if not (math.isfinite(candidate.raw_error_pct) and math.isfinite(current.raw_error_pct)):
-        return False
+        return "its raw held-out error is not finite"
     # No harm: a raw error within a tie, or a model error that rises by less than the fall
     # significance asks for (a refit with φ measured on a tc1 three times noisier put τ
     # nearer the truth and its model error from 0.108 to 0.120 % under a floor of 0.13 %).
@@ -165,29 +180,50 @@ def is_significant(
         and abs(math.log(phi_hat)) > math.log(NOISE_RATIO_FACTOR)
         and harmless
     ):
-        return True
+        return ""
     if (
         effect == "delay"
         and math.isfinite(channel_phase_deg)
         and candidate.raw_error_pct < current.raw_error_pct
         and not _degenerate(candidate, current)
     ):
-        return True
+        return ""
     if candidate.raw_error_pct > (1.0 - MIN_RELATIVE_FALL) * current.raw_error_pct:
-        return False
-    if _degenerate(candidate, current):
-        return False
-    if current.error_pct - candidate.error_pct < MIN_FALL_PER_FLOOR * current.noise_floor_pct:
-        return False
+        fall = 1.0 - candidate.raw_error_pct / current.raw_error_pct
+        return (
+            f"the raw held-out error (noise included) falls {100.0 * fall:.3g} % "
+            f"({current.raw_error_pct:.3g} -> {candidate.raw_error_pct:.3g} %), "
+            f"{100.0 * MIN_RELATIVE_FALL:.3g} % asked"
+        )
+    bounded = _degenerate_parameters(candidate, current)
+    if bounded:
+        return (
+            "its fit puts "
+            + ", ".join(f"{name} = {candidate.params[name]:.4g}" for name in bounded)
+            + " on the edge of its physical range: no physical explanation was found"
+        )
+    needed = MIN_FALL_PER_FLOOR * current.noise_floor_pct
+    if current.error_pct - candidate.error_pct < needed:
+        return (
+            f"the model error falls {current.error_pct - candidate.error_pct:.3g} points, "
+            f"{MIN_FALL_PER_FLOOR:.3g} noise floors ({needed:.3g}) asked"
+        )
     before, after = current.block_errors_pct, candidate.block_errors_pct
     if before.size == 0 or before.size != after.size:
-        return False
+        return "the validation blocks of the two models cannot be compared"
     both = np.isfinite(before) & np.isfinite(after)  # blocks that both models scored
     if not both.any():
-        return False
-    if float(np.mean(after[both] < before[both])) < MIN_BLOCK_SHARE:
-        return False
-    return block_t(before, after) >= MIN_BLOCK_T
+        return "no validation block was scored by both models"
+    share = float(np.mean(after[both] < before[both]))
+    if share < MIN_BLOCK_SHARE:
+        return (
+            f"it lowers the error in {100.0 * share:.3g} % of the validation blocks, "
+            f"{100.0 * MIN_BLOCK_SHARE:.3g} % asked"
+        )
+    t = block_t(before, after)
+    if not t >= MIN_BLOCK_T:
+        return f"the blocks' fall has t = {t:.3g}, {MIN_BLOCK_T:.3g} asked"
+    return ""
 
 
 def block_t(before: NDArray[np.float64], after: NDArray[np.float64]) -> float:
@@ -213,6 +249,11 @@ def _degenerate(candidate: ModelFit, current: ModelFit) -> bool:
     jump of τ is no sign: a missing delay can send the base model's τ1 to a tenth of the truth,
     and the delay brings it back.)
     """
+    return bool(_degenerate_parameters(candidate, current))
+
+
+def _degenerate_parameters(candidate: ModelFit, current: ModelFit) -> list[str]:
+    """The parameters that make the candidate's fit degenerate (:func:`_degenerate`)."""
     new = set(candidate.params) - set(current.params)
 
     def driven(name: str) -> bool:
@@ -221,7 +262,7 @@ def _degenerate(candidate: ModelFit, current: ModelFit) -> bool:
         ratio = current.params[name] / candidate.params[name]
         return max(ratio, 1.0 / ratio) > DRIVEN_FACTOR
 
-    return any(name in new or driven(name) for name in candidate.at_bound)
+    return [name for name in candidate.at_bound if name in new or driven(name)]
 
 
 def rank(suspects: Sequence[Suspect]) -> list[Suspect]:
@@ -423,12 +464,22 @@ def next_round(
                     evidence=-math.inf,
                     signature=f"the refit failed: {exc}",
                     significant=False,
+                    refusal="the refit failed",
                 )
             )
             implausible_fits.append(False)
             continue
         evidence = 1.0 - fit.error_pct / current.error_pct if current.error_pct > 0 else 0.0
         implausible = implausibility(fit, evaluator)
+        refusal = significance_refusal(
+            current, fit, name, evaluator.data.phi_hat, evaluator.data.channel_phase_deg
+        )
+        if not refusal and not (name in ORDINARY_WHEN_SMALL or is_material(name, fit, evaluator)):
+            refusal = (
+                "below materiality: within what the sensors' class and their ordinary physics give"
+            )
+        if not refusal and implausible:
+            refusal = f"implausible: {implausible}"
         suspects.append(
             Suspect(
                 effect=name,
@@ -436,15 +487,8 @@ def next_round(
                 evidence=evidence,
                 signature=f"{signature(name, evaluator, current, fit)}"
                 + (f"; implausible: {implausible}" if implausible else ""),
-                significant=is_significant(
-                    current,
-                    fit,
-                    name,
-                    evaluator.data.phi_hat,
-                    evaluator.data.channel_phase_deg,
-                )
-                and (name in ORDINARY_WHEN_SMALL or is_material(name, fit, evaluator))
-                and not implausible,
+                significant=not refusal,
+                refusal=refusal,
                 fit=fit,
             )
         )

@@ -119,6 +119,10 @@ class Suspect:
         In words: the residual signature that points to this effect, with its statistic.
     significant : bool
         Whether the fall passes the significance rule (see :mod:`tcomp_core.diagnose.ranking`).
+    refusal : str
+        Why it was first judged not significant, in words ("" when it was significant): the
+        rule that failed with its figures, below materiality, or an implausible fit. A suspect
+        that clearly beats a significant one is made significant afterwards and keeps it.
     fit : ModelFit or None
         The refitted model (None when the refit failed; ``signature`` then says why).
     """
@@ -128,6 +132,7 @@ class Suspect:
     evidence: float
     signature: str
     significant: bool
+    refusal: str = ""
     fit: ModelFit | None = None
 
     def summary(self) -> dict[str, Any]:
@@ -138,6 +143,7 @@ class Suspect:
             "evidence": _finite(self.evidence),
             "signature": self.signature,
             "significant": self.significant,
+            "refusal": "" if self.significant else self.refusal,
         }
 
 
