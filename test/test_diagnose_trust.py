@@ -108,6 +108,9 @@ def test_each_refusal_names_the_rule_that_failed_with_its_figures():
     assert "falls 7.69 % (5.2 -> 4.8 %), 20 % asked" in small
     patchy = significance_refusal(current, _fit(1.0, 1.4, 1.0, [1.0, 6.0, 6.0, 1.0, 1.0], taus))
     assert "in 60 % of the validation blocks, 70 % asked" in patchy
+    # A current model with no raw error left: nothing can fall (no division by it).
+    perfect = dataclasses.replace(current, raw_error_pct=0.0)
+    assert "falls -inf %" in significance_refusal(perfect, _fit(**better, params=with_gain))
     # Every refusal is a verdict of is_significant and the other way round.
     for fit in (_fit(**better, params=with_gain), _fit(4.6, 4.8, 1.0, [4.6] * 5, with_gain)):
         assert is_significant(current, fit) == (significance_refusal(current, fit) == "")

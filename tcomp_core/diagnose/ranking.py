@@ -189,7 +189,11 @@ def significance_refusal(
     ):
         return ""
     if candidate.raw_error_pct > (1.0 - MIN_RELATIVE_FALL) * current.raw_error_pct:
-        fall = 1.0 - candidate.raw_error_pct / current.raw_error_pct
+        fall = (
+            1.0 - candidate.raw_error_pct / current.raw_error_pct
+            if current.raw_error_pct > 0.0
+            else -math.inf
+        )
         return (
             f"the raw held-out error (noise included) falls {100.0 * fall:.3g} % "
             f"({current.raw_error_pct:.3g} -> {candidate.raw_error_pct:.3g} %), "

@@ -122,7 +122,8 @@ class Suspect:
     refusal : str
         Why it was first judged not significant, in words ("" when it was significant): the
         rule that failed with its figures, below materiality, or an implausible fit. A suspect
-        that clearly beats a significant one is made significant afterwards and keeps it.
+        that clearly beats a significant one is made significant afterwards; its refusal is
+        then not reported (``summary`` gives "").
     fit : ModelFit or None
         The refitted model (None when the refit failed; ``signature`` then says why).
     """
