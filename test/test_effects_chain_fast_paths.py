@@ -97,3 +97,30 @@ def test_the_compiled_lag_loops_step_as_the_python_recurrence(radiating, film):
         loss = r * ((expected[k] + KELVIN) ** 4 - wall4)
         step = pole * expected[k] + (1.0 - pole) * (drive[k] - loss)
         assert found[k + 1] == pytest.approx(step, rel=1e-14)
+
+
+def test_the_lag_loops_compile_in_memory_where_no_cache_can_be_written(monkeypatch):
+    """numba refuses ``cache=True`` (RuntimeError) where no cache directory is writable."""
+    import numba
+
+    from tcomp_core.effects import recurrence
+
+    plain_njit = numba.njit
+
+    def njit(*args, **kwargs):
+        if kwargs.get("cache"):
+            raise RuntimeError("cannot cache function: no locator available")
+        return plain_njit(*args, **kwargs)
+
+    monkeypatch.setattr(numba, "njit", njit)
+    recurrence._kernels.cache_clear()
+    try:
+        drive = np.linspace(500.0, 600.0, 50)
+        poles = np.full(50, 0.9)
+        found = recurrence.lag_steps(drive, poles, 500.0, 0.0, 0.0)
+        assert recurrence._kernels()[0] is not recurrence._lag_steps
+    finally:
+        recurrence._kernels.cache_clear()
+    expected = np.empty(51)
+    recurrence._lag_steps(drive, poles, 500.0, 0.0, 0.0, expected)
+    np.testing.assert_allclose(found, expected, rtol=1e-14)

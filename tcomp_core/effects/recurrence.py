@@ -4,7 +4,8 @@ A radiating sensor (a loss ∝ T⁴ taken at the state) and a sensor whose τ fo
 temperature are nonlinear recurrences, and one whose τ follows the flow is linear with a pole
 per sample: neither is an ``lfilter``. Every free-run simulation of such a sensor in a fit runs
 one sample at a time, so the loops are compiled by numba (:func:`numba.njit`, cached on disk
-beside this file) on their first use; without numba the same functions run as Python.
+beside this file, or in numba's user cache where that is read-only; in memory when neither is
+writable) on their first use; without numba the same functions run as Python.
 """
 
 from __future__ import annotations
@@ -87,8 +88,12 @@ def _kernels() -> tuple[Callable[..., None], Callable[..., None]]:
         import numba
     except ImportError:  # pragma: no cover - numba is a dependency; Python is the fallback
         return _lag_steps, _level_lag_steps
-    compile_: Any = numba.njit(cache=True, nogil=True)
-    return compile_(_lag_steps), compile_(_level_lag_steps)
+    try:
+        compile_: Any = numba.njit(cache=True, nogil=True)
+        return compile_(_lag_steps), compile_(_level_lag_steps)
+    except RuntimeError:  # no writable cache directory (a read-only install, no home)
+        compile_ = numba.njit(nogil=True)
+        return compile_(_lag_steps), compile_(_level_lag_steps)
 
 
 def _floats(values: NDArray[Any]) -> NDArray[np.float64]:
