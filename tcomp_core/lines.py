@@ -40,10 +40,13 @@ __all__ = [
     "LINE_PROMINENCE",
     "NOTCH_Q",
     "ForeignLine",
+    "fitted_tone",
     "foreign_lines",
     "line_free_pair",
     "notch",
+    "remove_lines",
     "segment_length",
+    "subtract_tones",
 ]
 
 #: A line's power over the median of its neighbourhood (±:data:`LINE_NEIGHBOURS` bins), and
@@ -141,9 +144,14 @@ def _prominence(power: NDArray[np.float64]) -> NDArray[np.float64]:
 def _peaks(power: NDArray[np.float64], prominence: NDArray[np.float64]) -> NDArray[np.intp]:
     """Bins (from the third on) where ``power`` peaks at :data:`LINE_PROMINENCE` × its median.
 
-    ``prominence`` is :func:`_prominence` of ``power``.
+    ``prominence`` is :func:`_prominence` of ``power``. The Nyquist bin counts as a peak when
+    it stands above the bin below it: a harmonic that aliases onto fs/2 (the fifth of 50 Hz
+    at 500 Hz) lies there, where :func:`scipy.signal.find_peaks` never looks.
     """
     found, _ = signal.find_peaks(power)
+    last = power.size - 1
+    if last >= 2 and power[last] > power[last - 1]:
+        found = np.append(found, last)
     return found[(found >= 2) & (prominence[found] >= LINE_PROMINENCE)]
 
 
@@ -172,6 +180,8 @@ def _line(spectra: _Spectra, peak: int, channel: int) -> ForeignLine:
     amplitude = math.sqrt(
         2.0 * float(power[peak - 1 : peak + 2].sum()) * spectra.fs / spectra.nperseg
     )
+    if peak == power.size - 1:  # the Nyquist bin: no bin above to refine the centre with
+        return ForeignLine(float(spectra.freq[peak]), channel, amplitude)
     left, centre, right = np.log(np.maximum(power[peak - 1 : peak + 2], 1e-300))
     curvature = left - 2.0 * centre + right
     shift = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
@@ -248,7 +258,7 @@ def foreign_lines(
     if not frequencies:
         return []
     try:
-        refitted = refit(notch(tc1, dt, frequencies), notch(tc2, dt, frequencies))
+        refitted = refit(remove_lines(tc1, dt, frequencies), remove_lines(tc2, dt, frequencies))
     except TcompError:
         return found or []
     confirmed = _foreign(spectra, *refitted, channel)
@@ -273,8 +283,9 @@ def notch(
 ) -> NDArray[np.float64]:
     """``values`` with a zero-phase notch (Q = :data:`NOTCH_Q`) at each of ``frequencies`` (Hz).
 
-    Frequencies at or beyond :data:`NOTCH_LIMIT` of the sample rate are left alone, as is a
-    signal too short for the filter's edge padding.
+    Frequencies at or beyond :data:`NOTCH_LIMIT` of the sample rate are left alone
+    (:func:`remove_lines` fits a tone there), as is a signal too short for the filter's edge
+    padding.
     """
     fs = 1.0 / dt
     out = np.asarray(values, dtype=np.float64)
@@ -286,6 +297,88 @@ def notch(
             continue
         out = signal.filtfilt(b, a, out)
     return out
+
+
+def remove_lines(
+    values: NDArray[np.float64], dt: float, frequencies: Sequence[float]
+) -> NDArray[np.float64]:
+    """``values`` without the lines at ``frequencies`` (Hz), on one channel.
+
+    Below :data:`NOTCH_LIMIT` of the sample rate a zero-phase notch (:func:`notch`) takes each
+    off; at and above it, where a notch has no room, the line's least-squares tone
+    (:func:`fitted_tone`) is subtracted: a harmonic aliased onto fs/2 (the fifth of 50 Hz at
+    500 Hz) put ml-eiv's τ1 55 % off a 0.5 kHz record of the detailed simulator when left in.
+    """
+    fs = 1.0 / dt
+    out = notch(values, dt, [f for f in frequencies if f < NOTCH_LIMIT * fs])
+    for frequency in frequencies:
+        if NOTCH_LIMIT * fs <= frequency <= 0.5 * fs:
+            out = out - fitted_tone(out, dt, frequency)
+    return out
+
+
+def subtract_tones(
+    values: NDArray[np.float64], dt: float, frequencies: Sequence[float]
+) -> NDArray[np.float64]:
+    """``values`` less the least-squares tone (:func:`fitted_tone`) of each of ``frequencies``.
+
+    What a noise measurement needs from a reading with lines: the lines gone and the noise
+    floor whole. A notch leaves a hole in the spectrum that a low quantile of it reads as a
+    quieter sensor (φ 1.39 instead of 1.01 on a 0.5 kHz record with 50 and 150 Hz notched);
+    a tone takes two degrees of freedom.
+    """
+    out = np.asarray(values, dtype=np.float64)
+    for frequency in frequencies:
+        if 0.0 < frequency <= 0.5 / dt:
+            out = out - fitted_tone(out, dt, frequency)
+    return out
+
+
+def fitted_tone(values: NDArray[np.float64], dt: float, frequency: float) -> NDArray[np.float64]:
+    """The least-squares sinusoid of ``values`` at the line nearest ``frequency`` (Hz).
+
+    The line's frequency is searched within a Welch bin (:func:`segment_length`) of
+    ``frequency``: on a fine grid of the zoomed DFT (:func:`scipy.signal.zoom_fft`, four points
+    per DFT bin) and then by maximising the power a real cos/sin pair explains (bounded,
+    which reaches fs/2 exactly, where the sine vanishes and the cosine alone is fitted). One
+    amplitude and phase over the whole series: a stationary line, as the mains is over the
+    seconds of a window.
+
+    Returns
+    -------
+    ndarray, shape like ``values``
+        The tone, in the units of ``values``.
+    """
+    from scipy.optimize import minimize_scalar
+
+    centred = np.asarray(values, dtype=np.float64) - float(np.mean(values))
+    n = centred.size
+    nyquist = 0.5 / dt
+    width = 1.0 / (segment_length(n, dt) * dt)
+    low, high = max(frequency - width, 0.0), min(frequency + width, nyquist)
+    count = max(8, math.ceil(4.0 * (high - low) * n * dt) + 1)
+    grid = np.linspace(low, high, count)
+    spectrum = signal.zoom_fft(centred, [low, high], m=count, fs=1.0 / dt, endpoint=True)
+    start = float(grid[int(np.argmax(np.abs(spectrum)))])
+    samples = np.arange(n) * dt
+
+    def tone(f: float) -> NDArray[np.float64]:
+        phase = 2.0 * np.pi * f * samples
+        basis = np.stack([np.cos(phase), np.sin(phase)], axis=1)
+        coefficients = np.linalg.lstsq(basis, centred, rcond=None)[0]
+        return basis @ coefficients
+
+    step = (high - low) / (count - 1)
+    bounds = (max(start - step, low), min(start + step, high))
+    best = minimize_scalar(
+        lambda f: -float(np.sum(tone(f) ** 2)),
+        bounds=bounds,
+        method="bounded",
+        options={"xatol": step * 1e-3},
+    )
+    edge = max(bounds, key=lambda f: float(np.sum(tone(f) ** 2)))
+    chosen = best.x if -best.fun >= float(np.sum(tone(edge) ** 2)) else edge
+    return tone(float(chosen))
 
 
 def line_free_pair(
@@ -326,6 +419,11 @@ def line_free_pair(
     sigmas: dict[int, float] = {}
     for line in lines:
         carrier, other = line.channel - 1, 2 - line.channel
+        if line.frequency_hz >= NOTCH_LIMIT / dt:
+            # No notch fits here; the sensors pass next to no gas this fast: the tone is
+            # the line's.
+            readings[carrier] = remove_lines(readings[carrier], dt, [line.frequency_hz])
+            continue
         omega = 2.0 * np.pi * line.frequency_hz
         gain = (1.0 + 1j * omega * taus[other]) / (1.0 + 1j * omega * taus[carrier])
         carried = _band(readings[carrier], dt, line.frequency_hz)

@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..choices import DEFAULT_METHOD, METHODS, PAPER_METHODS, Method
 from ..errors import DataError, TcompError
 from ..filters import prefilter
-from ..lines import ForeignLine, foreign_lines, notch
+from ..lines import ForeignLine, foreign_lines, remove_lines, subtract_tones
 from ..validation import (
     check_excitation,
     check_pair,
@@ -186,7 +186,7 @@ def estimate(
         lines = tuple(foreign_lines(first, second, dt, taus, refit))
     if lines:
         frequencies = [line.frequency_hz for line in lines]
-        notched = notch(first, dt, frequencies), notch(second, dt, frequencies)
+        notched = remove_lines(first, dt, frequencies), remove_lines(second, dt, frequencies)
         warm = start if result is None else warm_start(result)
         try:
             result = replace(fit(*notched, warm), lines=lines)
@@ -196,7 +196,8 @@ def estimate(
             lines = ()  # the notches took what the fit needed: keep the estimate as it was
         else:
             first, second = notched
-            raw = notch(raw[0], dt, frequencies), notch(raw[1], dt, frequencies)  # for φ
+            # φ from the readings with the lines' tones off: a notch's hole reads as quiet.
+            raw = subtract_tones(raw[0], dt, frequencies), subtract_tones(raw[1], dt, frequencies)
     if result is None:
         raise refused
     if measured:
