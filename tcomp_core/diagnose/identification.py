@@ -140,6 +140,8 @@ MAX_CHANGE_PER_EVIDENCE = 4.0
 LOOSE_SHARE = 0.5
 #: Share at or beyond which the parameter is free: the data say nothing of it.
 FREE_SHARE = 0.9
+#: :attr:`ParameterCheck.reason` of a parameter the fit left on a bound of its range.
+ON_BOUND = "on a bound of its physical range"
 
 
 @dataclass(frozen=True)
@@ -169,7 +171,8 @@ class ParameterCheck:
     gas_move_c : float
         rms 95 % half-width of the gas when the parameter goes to the ends of its interval
         along the fit's valley (the other parameters following it by their covariance),
-        degrees C; NaN when not computed (the parameter is not wide, or not determined).
+        degrees C; for a parameter on a bound, the larger move of an end from the fit's gas.
+        NaN when not computed (neither wide nor on a bound, or no covariance).
     gas_shape_move_c : float
         The same with the move's mean over the record removed: what the parameter moves in
         the gas's fluctuation rather than its level, degrees C.
@@ -307,15 +310,17 @@ class Identification:
     def output_band_c(self, effects: tuple[str, ...]) -> float:
         """The rms 95 % half-width of the published gas when ``effects`` are applied, degrees C.
 
-        The jackknife band with, in quadrature, the move across each free parameter of those
-        effects (:attr:`ParameterCheck.gas_move_c`): the refits share the fit's priors, so
+        The jackknife band with, in quadrature, the move across each free or on-bound parameter
+        of those effects (:attr:`ParameterCheck.gas_move_c`): the refits share the fit's priors, so
         they cannot see what only a prior decides (a wall temperature behind the sensors'
         level difference).
         """
         moves = [
             check.gas_move_c
             for check in self.checks
-            if check.effect in effects and check.free and math.isfinite(check.gas_move_c)
+            if check.effect in effects
+            and (check.free or check.at_bound)
+            and math.isfinite(check.gas_move_c)
         ]
         return math.sqrt(self.band_c**2 + sum(move**2 for move in moves))
 
@@ -554,14 +559,16 @@ def _valley_move(
     gas_of: Callable[[Model], NDArray[np.float64]],
     keep: NDArray[np.bool_],
     level_free: bool,
+    from_fit: bool = False,
 ) -> tuple[float, float]:
     """The rms 95 % half-width of the gas as ``name`` crosses its interval along the valley.
 
     The searched parameters move by ±1.96 times the covariance's column of ``name`` over its
     standard deviation (the others follow it as the fit lets them), clipped to their bounds;
     the gas at both ends, half their difference, rms over ``keep`` (its mean removed when
-    ``level_free``), and the same with its mean removed. NaN when the covariance does not
-    give it.
+    ``level_free``), and the same with its mean removed. With ``from_fit``, for a parameter on
+    a bound, where one end is clipped to the fit itself: the larger move of an end from the
+    fit's gas instead of the half difference. NaN when the covariance does not give it.
     """
     matrix = covariance.matrix
     index = covariance.names.index(name)
@@ -578,9 +585,22 @@ def _valley_move(
             ends.append(gas_of(Model(model.effects, params)))
         except (EstimationError, ValueError, ArithmeticError):
             return math.inf, math.inf
-    half = 0.5 * (ends[1] - ends[0])
-    shape = half - np.nanmean(half[keep])
-    return _rms(shape if level_free else half, keep), _rms(shape, keep)
+    if from_fit:
+        centre = gas_of(model)
+        moves = [_moves(end - centre, keep, level_free) for end in ends]
+        return max(move[0] for move in moves), max(move[1] for move in moves)
+    return _moves(0.5 * (ends[1] - ends[0]), keep, level_free)
+
+
+def _moves(
+    difference: NDArray[np.float64], keep: NDArray[np.bool_], level_free: bool
+) -> tuple[float, float]:
+    """The rms over ``keep`` of a gas difference, and of it with its mean removed.
+
+    The first has its mean removed too when ``level_free``.
+    """
+    shape = difference - np.nanmean(difference[keep])
+    return _rms(shape if level_free else difference, keep), _rms(shape, keep)
 
 
 def _looseness(spec: ParamSpec, low: float, high: float) -> tuple[str, float]:
@@ -748,11 +768,17 @@ def identify(
         if covariance.matrix is None:
             reason = "the data do not determine it (singular fit)"
         elif name in covariance.at_bound:
-            reason = "on a bound of its physical range"
+            reason = ON_BOUND
         loose, share = ("", math.nan) if reason else _looseness(spec, low, high)
         move = shape_move = math.nan
         if share >= LOOSE_SHARE:  # wide: what it moves decides (compensation.plan)
             move, shape_move = _valley_move(model, covariance, name, gas_of, keep, level_free)
+        elif name in covariance.at_bound and covariance.matrix is not None:
+            # On a bound, the interval's far end against the fit: a move the gas does not
+            # notice leaves the parameter harmless to it (compensation.plan).
+            move, shape_move = _valley_move(
+                model, covariance, name, gas_of, keep, level_free, from_fit=True
+            )
         checks.append(
             ParameterCheck(
                 effect=effect,
