@@ -379,6 +379,36 @@ def test_a_fit_is_applied_only_when_the_data_pin_it_down(
 
 
 @pytest.mark.parametrize(
+    ("published_change_c", "applied"),
+    [(2.55, False), (20.0, True), (math.nan, True)],
+    ids=["inside-the-band", "beyond-it", "not-measured"],
+)
+def test_a_model_whose_gas_the_band_does_not_tell_from_the_default_gas_is_not_applied(
+    published_change_c, applied
+):
+    """Campaign draw 3324 (mains on one sensor): the model took the line off, as the default
+    path does, and added a false level-dependent τ; its change, 17.1 degC rms, just cleared
+    its band of +-16.9, but against the default path's gas it changed 2.55: applied, the gas
+    went 5.3 -> 6.6 % off."""
+    from tcomp_core.compensation import output_model_from_diagnosis
+    from tcomp_core.diagnose.identification import Identification
+
+    found = Identification(
+        checks=(_check("delay_s"),),
+        band_c=16.9,
+        change_c=17.1,
+        evidence_c=8.6,
+        published_change_c=published_change_c,
+    )
+    diagnosis = _diagnosis_with(("delay",), {}, identification=found, taus=(0.03, 0.12))
+    model = output_model_from_diagnosis(diagnosis, first_order_taus=(0.02, 0.1))
+    assert (model.applied() == ("delay",)) is applied
+    if not applied:
+        assert "change the model makes to the default path's gas (2.55" in model.pieces[0].reason
+        assert (model.tau1, model.tau2) == (0.02, 0.1)
+
+
+@pytest.mark.parametrize(
     ("published_change_c", "failure", "evidence_c", "applied", "reason"),
     [
         # The default first order fails, and the model's gas stands beyond its band from the
