@@ -311,10 +311,7 @@ def remove_lines(
     """
     fs = 1.0 / dt
     out = notch(values, dt, [f for f in frequencies if f < NOTCH_LIMIT * fs])
-    for frequency in frequencies:
-        if NOTCH_LIMIT * fs <= frequency <= 0.5 * fs:
-            out = out - fitted_tone(out, dt, frequency)
-    return out
+    return subtract_tones(out, dt, [f for f in frequencies if f >= NOTCH_LIMIT * fs])
 
 
 def subtract_tones(
@@ -372,19 +369,21 @@ def fitted_tone(values: NDArray[np.float64], dt: float, frequency: float) -> NDA
         chosen += 0.5 * (left - right) / curvature * step if curvature < 0 else 0.0
     samples = np.arange(n) * dt
 
-    def fit(f: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """cos, sin at ``f`` and their least-squares coefficients (normal equations, 2 × 2)."""
+    def fit(f: float) -> tuple[tuple[NDArray[np.float64], ...], NDArray[np.float64], float]:
+        """cos, sin at ``f``, their coefficients and the tone's squared norm.
+
+        The coefficients by the 2 × 2 normal equations; the norm is them times the projections.
+        """
         phase = 2.0 * np.pi * f * samples
         waves = (np.cos(phase), np.sin(phase))
         gram = np.array([[float(a @ b) for b in waves] for a in waves])
         rhs = np.array([float(wave @ centred) for wave in waves])
         # At fs/2 the sine is rounding only: the pseudo-inverse fits the cosine alone.
-        return waves[0], waves[1], np.linalg.lstsq(gram, rhs, rcond=1e-10)[0]
+        coefficients = np.linalg.lstsq(gram, rhs, rcond=1e-10)[0]
+        return waves, coefficients, float(coefficients @ rhs)
 
     def power(f: float) -> float:
-        """The squared norm of the tone at ``f`` (its coefficients times the projections)."""
-        cos, sin, coefficients = fit(f)
-        return float(coefficients @ np.array([cos @ centred, sin @ centred]))
+        return fit(f)[2]
 
     if nyquist - chosen < 2.0 * width:
         # Near fs/2 the line's mirror image bends the DFT's peak: maximise the real fit.
@@ -394,7 +393,7 @@ def fitted_tone(values: NDArray[np.float64], dt: float, frequency: float) -> NDA
         )
         edge = max(bounds, key=power)
         chosen = float(best.x) if -best.fun >= power(edge) else edge
-    cos, sin, (a, b) = fit(chosen)
+    (cos, sin), (a, b), _ = fit(chosen)
     return a * cos + b * sin
 
 
