@@ -257,6 +257,15 @@ class Effect:
     #: identify`). An effect that such a start absorbs by bending τ (a delay) sets it False and
     #: says why: the disagreement there hides what the effect corrects.
     evidence_at_start: ClassVar[bool] = True
+    #: Whether the default first-order path's τ keep their common scale under this effect
+    #: when the effect is small: it moves the two sensors apart (a shift, a gain, a line, a
+    #: noise), not the lag both see. A model of such effects only takes the default path's
+    #: scale where its fit cannot tell it from its own
+    #: (:meth:`tcomp_core.diagnose.heldout.Evaluator.with_published_scale`); an effect on the
+    #: lag itself (a varying speed, a conduction, a radiation, a level-dependent τ) biases that
+    #: scale (a speed swinging ±30 % put the default path's τ 6–8 % high where the velocity fit
+    #: was within 4 %, campaign draw 3008) and keeps the fit's own.
+    keeps_first_order_scale: ClassVar[bool] = False
     #: How far a fit with this effect may move either τ from the first-order estimate (a factor,
     #: either way). The first-order τ absorbs what the effect does, so it is biased, but by a
     #: bounded amount for each effect; a fit beyond found no physical explanation and is

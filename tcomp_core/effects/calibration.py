@@ -51,6 +51,7 @@ class Calibration(Effect):
     max_tau_factor = math.inf
     fits_level = True
     summary = "tc2 reads gain * T + offset relative to tc1 (gain, offset_c)"
+    keeps_first_order_scale = True
 
     def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
         """Tc2's gain (dimensionless) and offset_c (degrees C): 3 % and -4 degC, beyond class 2."""

@@ -70,6 +70,7 @@ class Delay(Effect):
 
     name = "delay"
     summary = "tc2 sees the gas later than tc1 (delay_s)"
+    keeps_first_order_scale = True
     evidence_at_start = False
 
     def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:

@@ -151,6 +151,7 @@ class Interference(Effect):
         "a line and its odd harmonics on one channel, e.g. mains pick-up (interference_hz, "
         "amplitudes)"
     )
+    keeps_first_order_scale = True
     setting_choices = ({"interference_channel": 2.0}, {"interference_channel": 1.0})
 
     def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:

@@ -21,7 +21,7 @@ import math
 import operator
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -695,7 +695,9 @@ class Model:
             )
         # tr_solver="lsmr": the exact trust-region solver takes an SVD of the whole N × P
         # Jacobian every step (N ~ 20 000 rows: 40 % of a diagnosis); with P ≲ 20 LSMR solves
-        # the same subproblem in a few products with J.
+        # the same subproblem in a few products with J. SciPy's LSMR step needs two unknowns
+        # (its two-dimensional subspace indexes a second one); one is solved exactly.
+        solver: Literal["exact", "lsmr"] = "lsmr" if problem.lower.size > 1 else "exact"
         if len(starts) > 1:
             scout = self._scout_problem(tc1, tc2, context, rows, hold, problem)
             scouted = [
@@ -705,7 +707,7 @@ class Model:
                     jac=scout.jacobian,
                     bounds=(lower, upper),
                     max_nfev=_SCOUT_EVALUATIONS,
-                    tr_solver="lsmr",
+                    tr_solver=solver,
                 )
                 for x0 in starts
             ]
@@ -713,7 +715,7 @@ class Model:
         else:
             x0 = starts[0]
         result = least_squares(
-            residuals, x0, jac=jacobian, bounds=(lower, upper), x_scale="jac", tr_solver="lsmr"
+            residuals, x0, jac=jacobian, bounds=(lower, upper), x_scale="jac", tr_solver=solver
         )
         if not np.isfinite(result.cost):
             raise EstimationError(f"the fit of {self.effects or 'the base model'} diverged")
