@@ -53,3 +53,43 @@ def test_the_projects_form_on_the_other_form_is_not_materially_worse_than_first_
         assert not materially_worse(first, compensated), (model.describe(), first, compensated)
     # The form is a real change of the physics: first order misses it by far more than noise.
     assert scores(record, plain, band, sim.gas_held)[0] > 5.0
+
+
+@pytest.mark.slow
+def test_supports_lagging_beyond_the_record_put_the_constant_supports_form_in_the_band():
+    """The fin fit's τp is bounded by the record; supports that lag longer (the detailed
+    simulator's 2.5 s behind a 4 s record) end on that bound, where the constant-supports form
+    fits as well and moves the gas: that move joins the band (campaign draw 2887)."""
+    from detailed_physics import Rig, Wire, simulate_rig
+
+    from tcomp_core.diagnose import fit_effects
+    from tcomp_core.effects.conduction import CONSTANT_SUPPORT_LAG_S, Conduction
+    from tcomp_core.effects.model import Model
+
+    rig = Rig(
+        signal="rotating_disk",
+        duration_s=4.0,
+        rate_hz=1000.0,
+        seed=1,
+        wires=(Wire(55e-6, length_m=1e-3), Wire(147e-6, length_m=1e-3)),
+        speed_m_s=3.8,
+        conduction=True,
+        support_c=None,
+        support_lag_s=2.5,
+        noise_c=(0.12, 0.12),
+    )
+    sim = simulate_rig(rig)
+    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source="s", dt=sim.dt)
+    fit = fit_effects(record, ["conduction"]).final
+    found = fit.identification
+    assert fit.params["tau_p"] == pytest.approx(record.time[-1] / 3.0, rel=0.01)  # its bound
+    assert found.form_c > 0.3 * found.change_c, (found.form_c, found.change_c)
+    assert "conduction_constant_supports" in found.form_note
+    # The form is the fin model with supports that outlast any record.
+    settings = dict(Conduction.alternative_forms[0])
+    constant = Model(("conduction",), {**fit.params, **settings})
+    lagging = Model(("conduction",), {**fit.params, "tau_p": CONSTANT_SUPPORT_LAG_S})
+    for sensor in (1, 2):
+        assert constant.instances[0].conduction(sensor, constant.params) == (
+            lagging.instances[0].conduction(sensor, lagging.params)
+        )
