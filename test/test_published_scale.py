@@ -18,6 +18,9 @@ from tcomp_core.effects import EFFECTS, Model
 from tcomp_core.estimators.default import default_estimate
 from tcomp_core.io import Record
 
+#: Each test fits a delay on a 3 s, 5 kHz detailed-physics record first.
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def delayed():

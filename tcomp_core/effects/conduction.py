@@ -79,11 +79,11 @@ MAX_SUPPORT_EXCESS_C = VALID_RANGE_C[1] - VALID_RANGE_C[0]
 #: The simulator's fin legs: mL of the slower wire (its supports pull it by sech(1.7) = 35 %
 #: at DC) and the supports' lag, s.
 SIMULATED_FIN_ML = 1.7
+SIMULATED_SUPPORT_LAG_S = 1.0
 #: The supports' lag in the constant-supports form (:attr:`Conduction.alternative_forms`), s:
 #: ten days, beyond any record, so that over the record the supports hold the temperature
 #: their initial excess (``mode_i``) gives them.
 CONSTANT_SUPPORT_LAG_S = 1e6
-SIMULATED_SUPPORT_LAG_S = 1.0
 #: The simulator's lumped prong: the slower wire's conductance to its prong over its convective
 #: conductance (the fast band reads 1/(1 + 0.4) = 71 % of the gas's swing).
 SIMULATED_PRONG_KAPPA = 0.4
