@@ -204,6 +204,7 @@ def test_a_tau_longer_than_the_record_from_a_fit_first_order_cannot_make_is_refu
     assert "°C in level" in message and "class 2" in message
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("noise_c", "seed"), [((0.5, 1.2), 26624267), ((1.0, 1.0), 26624267)])
 def test_a_tau_longer_than_the_record_that_a_gain_matches_is_refused_with_the_gain(noise_c, seed):
     """Legs of 0.9 mm to supports at 57 degC on a hot step-ramp (the independent detailed

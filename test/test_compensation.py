@@ -529,6 +529,7 @@ def test_the_default_first_order_fails_a_record_by_its_dynamics_not_its_calibrat
     assert default_first_order_failure(record, None) == ""
 
 
+@pytest.mark.slow
 def test_the_change_against_the_published_first_order_is_measured_like_the_effects_change():
     """Against first order at the fit's own τ it is the effects' change; against another τ,
     the τ's move adds to it. Without published τ the fit measures the default path's."""
@@ -557,6 +558,7 @@ def test_the_change_against_the_published_first_order_is_measured_like_the_effec
     assert moved.final.identification.published_change_c > 1.1 * found.change_c
 
 
+@pytest.mark.slow
 def test_the_change_against_the_published_first_order_takes_its_lines_off_as_it_does():
     """The default path takes the lines it finds off the carrying channel before it publishes;
     against its first order measured with the line left on, an interference fit's change
@@ -666,6 +668,7 @@ def test_a_level_handled_as_dynamics_is_not_refused_for_a_loose_parameter():
     assert not found.checks[0].pinned and found.checks[0].free
 
 
+@pytest.mark.slow
 def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied():
     """The identification measured on real fits: a strong delay is applied; a calibration
     far below its own uncertainty on the gas is not (its parameters are determined all the
@@ -698,6 +701,7 @@ def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied(
     assert (model.tau1, model.tau2) == (diagnosis.final.tau1, diagnosis.final.tau2)
 
 
+@pytest.mark.slow
 def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
     """Pure noise on both channels: the first-order fit ends on its τ bound, and the gas is
     refused as the first-order path refuses it (it was written with τ1 = 10 s, exit 0)."""
@@ -923,6 +927,7 @@ def test_a_form_the_data_cannot_rule_out_widens_the_band_and_must_find_the_chang
     assert math.isinf(move) and "failed" in note
 
 
+@pytest.mark.slow
 def test_a_property_fit_reports_its_other_form_and_the_level_it_splits():
     from tcomp_core.diagnose import fit_effects
     from tcomp_core.io import Record
@@ -965,6 +970,7 @@ def test_local_parameters_are_not_judged_by_the_refit_that_interpolates_them():
         assert local[start:stop] == pytest.approx(np.full(stop - start, expected))
 
 
+@pytest.mark.slow
 def test_a_varying_speed_is_applied_when_it_changes_the_gas_beyond_its_band():
     """Velocity's spline on the effect simulator (τ swinging ±30 % every 3 s): its band, from
     the refits that kept each stretch and the coefficients' covariance, is narrower than the

@@ -42,6 +42,7 @@ def _sine_series(count: int, dt: float, seed: int) -> tuple[np.ndarray, np.ndarr
     return time, gas + rng.normal(0, 0.2, count), gas + rng.normal(0, 0.2, count)
 
 
+@pytest.mark.slow
 def test_a_bag_is_handed_over_in_windows_holding_a_window_and_a_chunk_at_most(tmp_path):
     dt, count, window_s = 0.001, 400_000, 5.0  # 400 s at 1 kHz: 80 windows
     time, tc1, tc2 = _sine_series(count, dt, seed=1)

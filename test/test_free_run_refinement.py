@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tcomp_core.diagnose import diagnose
 from tcomp_core.diagnose.heldout import TAUS
@@ -81,6 +82,7 @@ def _noisy_pulses_with_a_varying_speed():
     return campaign_draws.simulate(campaign_draws.draw(3008))
 
 
+@pytest.mark.slow
 def test_a_noisy_varying_speed_s_spline_is_refined_on_the_free_run_error_and_chosen_on_held_out():
     record, truth = _noisy_pulses_with_a_varying_speed()
     evaluator, base_model, base, _ = _base_fit(record)

@@ -243,6 +243,7 @@ def test_streaming_fuser_matches_the_batch_filter():
     assert fuser.predict()[0] == pytest.approx(batch.gas[-1])
 
 
+@pytest.mark.slow
 def test_causal_filter_beats_the_unfiltered_reconstruction():
     pair, model = causal_case()
     causal = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model=model, causal=True)
@@ -361,6 +362,7 @@ def _plain_reference(model, tc1, tc2, exact_steps):
     return np.array(gas[1:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["random-walk", "periodic", "band-limited", "autoregressive"])
 def test_the_batched_causal_filter_equals_the_plain_kalman_recursion(kind):
     pair = make_pair("multisine", duration=3.0, noise_percent=1.0, seed=7, dt=0.0005)
@@ -417,6 +419,7 @@ def test_auto_leaves_out_a_model_that_cannot_be_fitted(monkeypatch):
         fit_fusion_model(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model="autoregressive")
 
 
+@pytest.mark.slow
 def test_a_model_whose_smoother_is_not_finite_gives_way(monkeypatch):
     import tcomp_core.fusion.record as record
 

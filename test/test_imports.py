@@ -146,6 +146,7 @@ def _shortest_cycle(graph: Mapping[str, set[str]], group: set[str]) -> list[str]
     raise AssertionError(f"{sorted(group)} is strongly connected but has no cycle")
 
 
+@pytest.mark.slow
 def test_the_project_has_no_import_cycle():
     graph = import_graph(ROOT, PACKAGES)
     assert "tcomp_core.errors" in graph and "tcomp_ros" in graph

@@ -128,6 +128,7 @@ def test_interval_coverage(which):
     assert 0.85 <= hits.mean() <= 1.0, hits.mean()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["sinusoid", "ramp"])
 def test_standard_error_matches_the_spread(kind):
     """The reported standard error is the spread of the estimates over noise and class-2 gains,
@@ -204,6 +205,7 @@ def test_oracle_noise_free_exact():
     assert rel(tau2, 0.1168) < NOISE_FREE_RTOL
 
 
+@pytest.mark.slow
 def test_oracle_beats_ml_eiv():
     ml, _, _, _ = monte_carlo("sinusoid")
     oracle = np.array(

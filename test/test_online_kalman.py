@@ -99,6 +99,7 @@ class Stream:
         return float(np.sqrt(np.mean((gas[keep] - held[index[keep]]) ** 2)))
 
 
+@pytest.mark.slow
 def test_the_pairs_wait_for_the_first_filter_and_are_published_with_it(sine):
     runner = DeferredRunner()
     compensator = OnlineCompensator(OnlineConfig(window_s=2.0), runner=runner)
@@ -145,6 +146,7 @@ def test_a_refit_takes_over_between_two_samples_without_a_transient(sine):
     assert published[0] == pytest.approx(compensator.tau[0], rel=FUSION_RETUNE_CHANGE + 0.02)
 
 
+@pytest.mark.slow
 def test_a_build_that_does_not_land_gives_way_to_the_interim_filter(sine):
     runner = DeferredRunner()
     compensator = OnlineCompensator(OnlineConfig(window_s=1.0), runner=runner)

@@ -98,6 +98,7 @@ print(_mapped_blocks_after_a_freed_large_array())
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(heap_info() is None, reason="glibc's mallinfo2 is needed")
 def test_a_pinned_mmap_threshold_keeps_freed_large_arrays_out_of_the_heap():
     # Unpinned, glibc raises its threshold to 16 MiB when the 16 MiB array is freed, and the

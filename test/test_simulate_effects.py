@@ -65,6 +65,7 @@ def test_linear_response_matches_lsim():
     assert np.max(np.abs(response - gas[0] - expected)) < 1e-8 * np.ptp(gas)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("tau", "tau_leg"), [(0.0238, 0.1), (0.1168, 0.3)])
 def test_fin_response_follows_the_fin_transfer_function(tau, tau_leg):
     # G(s) = (1 - S)/(1 + tau s) + S/(1 + tau_p s), S = sech(mL sqrt(1 + tau s)): the steady
