@@ -172,7 +172,8 @@ def compare(
     found = diagnosis.final.identification
     row = {
         "verdict": diagnosis.verdict,
-        "found": [e for e in diagnosis.final.effects if e not in diagnosis.expected_physics],
+        "found": [e for e in diagnosis.final.effects if e not in diagnosis.expected_physics]
+        + diagnosis.default_path_findings,
         "output": output.name(),
         "pieces": [piece.summary() for piece in output.pieces],
         "band_c": None if found is None else found.band_c,

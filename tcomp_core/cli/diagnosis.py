@@ -88,7 +88,12 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
     for step in diagnosis.steps:
         label = "base" if not step.effects else "+ " + " + ".join(step.effects)
         lines.append(f"  {label:<40} {step.error_pct:8.3g} %")
-    lines.append(f"verdict: {diagnosis.verdict}")
+    handled = (
+        " (taken off by the default path before it estimates tau: see the notes)"
+        if diagnosis.verdict in diagnosis.default_path_findings
+        else ""
+    )
+    lines.append(f"verdict: {diagnosis.verdict}{handled}")
     lines.append(
         f"final: effects {', '.join(final.effects) or 'none'}; tau1 = {final.tau1:.5g} s, "
         f"tau2 = {final.tau2:.5g} s, held-out error {final.error_pct:.3g} %"

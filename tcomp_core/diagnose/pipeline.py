@@ -543,19 +543,44 @@ def diagnose(
     steps = staircase.steps
     steps[-1] = evaluator.refit_whole(steps[-1], partial(fit_other_form, evaluator))
     findings = [effect for effect in steps[-1].effects if effect not in staircase.expected]
-    verdict = findings[0] if findings else "none"
+    handled = _taken_off_by_the_default_path(evaluator, findings, candidates)
+    verdict = (findings or handled or ["none"])[0]
     if verdict == "none" and is_unexplained(steps[-1]):
         verdict = "unexplained"
-    return _diagnosis(
-        evaluator,
-        steps[0],
-        failure,
-        steps,
-        staircase.rounds,
-        verdict,
-        staircase.expected,
-        staircase.note,
+    return replace(
+        _diagnosis(
+            evaluator,
+            steps[0],
+            failure,
+            steps,
+            staircase.rounds,
+            verdict,
+            staircase.expected,
+            staircase.note,
+        ),
+        default_path_findings=handled,
     )
+
+
+def _taken_off_by_the_default_path(
+    evaluator: Evaluator, findings: list[str], candidates: Sequence[str]
+) -> list[str]:
+    """Effects among ``candidates`` the default path takes off itself, not in ``findings``.
+
+    Lines one channel carries alone (``evaluator.published_lines``) are mains pick-up, the
+    ``interference`` effect: the default path notches or subtracts them before it estimates τ,
+    so the base model at its τ leaves them no error and the staircase adds nothing for them
+    (campaign draws 3276, 3292, 3361, 3366: 50 or 60 Hz with harmonics on tc2, verdict
+    ``none``). On the 151 stored campaign draws the default path found such lines on every
+    draw with interference (20) and on none without it (131).
+    """
+    if (
+        evaluator.published_lines
+        and "interference" in candidates
+        and "interference" not in findings
+    ):
+        return ["interference"]
+    return []
 
 
 def fit_effects(

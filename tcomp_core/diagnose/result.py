@@ -208,6 +208,12 @@ class Diagnosis:
     expected_physics : list of str
         Effects added to the model as the sensors' ordinary physics, not findings (a ``property``
         of ordinary size: :func:`tcomp_core.diagnose.ranking.is_expected_physics`).
+    default_path_findings : list of str
+        Effects found in the record that the default first-order path takes off by itself, so
+        that the model holds no piece for them: ``interference`` when one channel carries lines
+        the other does not share (mains pick-up), which that path notches or subtracts before
+        it estimates τ (:func:`tcomp_core.lines.foreign_lines`; the notes name each line). They
+        are findings: the verdict names the first when the model found nothing else.
     """
 
     source: str
@@ -235,6 +241,7 @@ class Diagnosis:
     expected_physics: list[str] = field(default_factory=list)
     identifiability: list[str] = field(default_factory=list)
     context: FitContext | None = None
+    default_path_findings: list[str] = field(default_factory=list)
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
@@ -246,7 +253,7 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
     ``"none"`` or ``"unexplained"``), ``final`` {effects, tau1, tau2, error_pct, intervals_95,
     at_bound, ...}, ``steps`` (the error staircase), ``rounds``, ``ref_error_pct``, ``notes``,
     ``unexplained`` (the residual's signature in words, or ""), ``expected_physics``,
-    ``identifiability``.
+    ``identifiability``, ``default_path_findings``.
     """
     return {
         "source": diagnosis.source,
@@ -273,4 +280,5 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
         "unexplained": diagnosis.unexplained,
         "expected_physics": list(diagnosis.expected_physics),
         "identifiability": list(diagnosis.identifiability),
+        "default_path_findings": list(diagnosis.default_path_findings),
     }
