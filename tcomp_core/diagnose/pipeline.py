@@ -245,15 +245,16 @@ def _notes(data: PreparedData, evaluator: Evaluator) -> list[str]:
             "frequency bins): two time constants already match one tone exactly, so linear "
             "effects (delay, conduction) are hard to tell apart from a change of tau"
         )
-    if evaluator.base_taus_published:
-        # Those τ were estimated with these lines notched: interference the base model then
-        # leaves no error for (campaign draw 3276: 60 Hz on tc2, verdict none) is still said.
-        notes.extend(
-            f"tc{line.channel} carries a {line.frequency_hz:.4g} Hz line the other does not "
-            f"({line.amplitude_c:.3g} degC): the default path notches it, and its tau, the base "
-            "model's, were estimated without it"
-            for line in evaluator.published_lines
-        )
+    # The default path takes these lines off before it estimates τ: interference the base
+    # model then leaves no error for (campaign draw 3276: 60 Hz on tc2) is still said, and it
+    # is the verdict when nothing else is found (Diagnosis.default_path_findings).
+    whose = ", and its tau, the base model's, were estimated without it"
+    notes.extend(
+        f"tc{line.channel} carries a {line.frequency_hz:.4g} Hz line the other does not "
+        f"({line.amplitude_c:.3g} degC): the default path notches it"
+        f"{whose if evaluator.base_taus_published else ''}"
+        for line in evaluator.published_lines
+    )
     return notes
 
 
