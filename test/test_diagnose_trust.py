@@ -282,22 +282,19 @@ def test_mains_on_one_channel_is_found_as_interference(channel):
 def test_mains_the_default_path_takes_off_is_named_though_the_model_needs_no_piece():
     """Lines one channel carries alone are notched by the default path before it estimates
     τ; the base model at its τ then leaves them no error, yet they are the record's physics."""
-    from detailed_physics import Rig as DetailedRig
-    from detailed_physics import Wire as DetailedWire
-
     from tcomp_core.diagnose.result import diagnosis_to_dict
 
-    rig = DetailedRig(
+    rig = _rig(
         signal="step_ramp",
         duration_s=6.0,
-        rate_hz=2000.0,
         seed=8,
-        wires=(DetailedWire(40e-6), DetailedWire(90e-6)),
+        wires=(Wire(40e-6), Wire(90e-6)),
         speed_m_s=6.0,
         mains_hz=50.0,
         mains_amplitude_c=1.5,
         mains_channel=2,
         noise_c=(1.0, 1.0),
+        adc_bits=None,
     )
     found = diagnose(_record(simulate_rig(rig), "mains"))
     assert found.default_path_findings == ["interference"], found.final.effects

@@ -405,7 +405,7 @@ ORDINARY = {
 
 
 def _diagnosis(
-    evaluator, base, failure, steps, rounds, verdict, expected=(), note=""
+    evaluator, base, failure, steps, rounds, verdict, expected=(), note="", handled=()
 ) -> Diagnosis:
     data = evaluator.data
     notes = _notes(data, evaluator) + ([note] if note else [])
@@ -441,6 +441,7 @@ def _diagnosis(
         notes=notes,
         unexplained=describe_unexplained(evaluator, steps[-1]),
         expected_physics=list(expected),
+        default_path_findings=list(handled),
         identifiability=identifiability,
         context=evaluator.context,
     )
@@ -548,18 +549,16 @@ def diagnose(
     verdict = (findings or handled or ["none"])[0]
     if verdict == "none" and is_unexplained(steps[-1]):
         verdict = "unexplained"
-    return replace(
-        _diagnosis(
-            evaluator,
-            steps[0],
-            failure,
-            steps,
-            staircase.rounds,
-            verdict,
-            staircase.expected,
-            staircase.note,
-        ),
-        default_path_findings=handled,
+    return _diagnosis(
+        evaluator,
+        steps[0],
+        failure,
+        steps,
+        staircase.rounds,
+        verdict,
+        staircase.expected,
+        staircase.note,
+        handled,
     )
 
 
