@@ -791,15 +791,9 @@ def test_fit_output_model_gives_the_default_paths_tau_when_nothing_is_found():
     assert (model.tau1, model.tau2) == default_taus(record)
 
 
-def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
-    """The band and the evidence are weighed against what the effects change, at the fit's
-    own τ: a calibration that changes nothing, fitted at τ 1.5 times the initial ones, makes
-    no change (it carried the τ's whole move before: a conduction changing the gas by 22 °C
-    within a band of ±33 °C passed as a change of 101 °C); and the evidence is the
-    disagreement first order leaves at the better of the two τ."""
-    from tcomp_core.diagnose.identification import identify
-    from tcomp_core.diagnose.uncertainty import ParameterCovariance
-    from tcomp_core.effects import Model, make_context
+def _identification_inputs():
+    """A 4 s multisine of matched sensors, its context, a comparison low-pass, the samples kept."""
+    from tcomp_core.effects import make_context
 
     sim = simulate_effect(
         "calibration",
@@ -810,6 +804,27 @@ def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
         params={"gain": 1.0, "offset_c": 0.0},
     )
     context = make_context(sim.time, sim.tc1, sim.tc2, sim.dt)
+    band = signal.butter(2, 0.02)  # the comparison band: the noise left out
+
+    def lowpass(values):
+        return signal.filtfilt(*band, values)
+
+    keep = np.ones(sim.time.size - 1, dtype=bool)
+    keep[:200] = False
+    return sim, context, lowpass, keep
+
+
+def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
+    """The band and the evidence are weighed against what the effects change, at the fit's
+    own τ: a calibration that changes nothing, fitted at τ 1.5 times the initial ones, makes
+    no change (it carried the τ's whole move before: a conduction changing the gas by 22 °C
+    within a band of ±33 °C passed as a change of 101 °C); and the evidence is the
+    disagreement first order leaves at the better of the two τ."""
+    from tcomp_core.diagnose.identification import identify
+    from tcomp_core.diagnose.uncertainty import ParameterCovariance
+    from tcomp_core.effects import Model
+
+    sim, context, lowpass, keep = _identification_inputs()
     truth = (sim.tau1, sim.tau2)
     model = Model(
         ("calibration",), {"tau1": truth[0], "tau2": truth[1], "gain": 1.0, "offset_c": 0.0}
@@ -818,13 +833,6 @@ def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
     covariance = ParameterCovariance(
         names, np.zeros(4), 1e-6 * np.eye(4), np.full(4, -10.0), np.full(4, 10.0), ()
     )
-    band = signal.butter(2, 0.02)  # the comparison band: the noise left out
-
-    def lowpass(values):
-        return signal.filtfilt(*band, values)
-
-    keep = np.ones(sim.time.size - 1, dtype=bool)
-    keep[:200] = False
     initial = (1.5 * truth[0], 1.5 * truth[1])
 
     def identified(fitted):
@@ -858,6 +866,57 @@ def test_the_change_checked_is_the_effects_own_not_a_move_of_tau():
     )
     assert published.evidence_c < 0.2 * without.evidence_c
     assert published.evidence_c == pytest.approx(found.evidence_c, rel=1e-6)
+
+
+def test_a_rival_the_data_allow_widens_the_band_by_its_move_and_the_change_is_the_smaller():
+    """A rival explanation the held-out blocks do not rule out (another effect in place of
+    the last one taken, campaign draw 3402) counts as another form: its move joins the band
+    and the change is the smaller of the two; one they rule out (None) counts nothing."""
+    from tcomp_core.diagnose.identification import identify
+    from tcomp_core.diagnose.uncertainty import ParameterCovariance
+    from tcomp_core.effects import Model
+
+    sim, context, lowpass, keep = _identification_inputs()
+    model = Model(("delay",), {"tau1": sim.tau1, "tau2": sim.tau2, "delay_s": 2.0 * sim.dt})
+    covariance = ParameterCovariance(
+        ("tau1", "tau2", "delay_s"),
+        np.zeros(3),
+        1e-6 * np.eye(3),
+        np.full(3, -10.0),
+        np.full(3, 10.0),
+        (),
+    )
+    rival = Model(("delay",), {"tau1": 0.8 * sim.tau1, "tau2": 0.8 * sim.tau2, "delay_s": 0.0})
+
+    def identified(rivals):
+        readings = (sim.tc1, sim.tc2)
+        # The jackknife's refits land on the fit: no band of their own.
+        taus = (sim.tau1, sim.tau2)
+        return identify(
+            model,
+            covariance,
+            taus,
+            readings,
+            context,
+            lowpass,
+            keep,
+            lambda _: model,
+            rivals=rivals,
+        )
+
+    alone = identified(())
+    assert alone.band_c == pytest.approx(0.0, abs=1e-9)
+    assert alone.form_c == 0.0 and alone.form_note == ""
+    assert alone.change_c > 0.0
+
+    with_rival = identified([("the rival model delay", lambda: rival)])
+    assert with_rival.form_c > 0.0
+    assert with_rival.band_c == pytest.approx(with_rival.form_c)
+    assert "the rival model delay" in with_rival.form_note
+    assert with_rival.change_c == pytest.approx(0.0, abs=1e-9)  # the rival's delay 0: none
+
+    ruled_out = identified([("the rival model delay", lambda: None)])
+    assert ruled_out.band_c == alone.band_c and ruled_out.change_c == alone.change_c
 
 
 @pytest.mark.parametrize(

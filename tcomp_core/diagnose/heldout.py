@@ -20,9 +20,9 @@ denominator; 0 is a perfect model.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -414,6 +414,7 @@ class Evaluator:
         self,
         fit: ModelFit,
         other_form: Callable[[ModelFit, str, dict[str, float]], Model | None] | None = None,
+        rivals: Sequence[ModelFit] = (),
     ) -> ModelFit:
         """``fit`` with its parameters refitted on the whole record, its held-out scores kept.
 
@@ -425,7 +426,9 @@ class Evaluator:
         another of its forms (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`), or
         gives None when the held-out data rule that form out: what the forms the data do not
         tell apart change in the gas joins its band
-        (:func:`~tcomp_core.diagnose.identification.identify`).
+        (:func:`~tcomp_core.diagnose.identification.identify`), as does what ``rivals`` change:
+        fits with another effect in place of the last one ``fit`` took, which the held-out
+        blocks did not tell from it, refitted on the whole record here.
         """
         chosen = Model(fit.effects, fit.params)
         held = self.chosen_by_free_run(chosen)
@@ -489,6 +492,10 @@ class Evaluator:
                 refit_form=None
                 if other_form is None
                 else lambda name, settings: other_form(fit, name, settings),
+                rivals=[
+                    (f"the rival model {'+'.join(rival.effects)}", partial(self._refit, rival))
+                    for rival in rivals
+                ],
             )
         return replace(
             fit,
@@ -502,6 +509,11 @@ class Evaluator:
             at_bound=covariance.at_bound,
             identification=identification,
         )
+
+    def _refit(self, fit: ModelFit) -> Model:
+        """``fit``'s model refitted on the whole record (as :func:`.ranking.fit_other_form`)."""
+        model = Model(fit.effects, fit.params)
+        return self.refit_model(model, self.chosen_by_free_run(model))
 
     def _refit_rows(
         self, model: Model, rows: NDArray[np.bool_], held: frozenset[str], polished: frozenset[str]

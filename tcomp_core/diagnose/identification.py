@@ -88,6 +88,14 @@ change that counts is the smallest any form makes: a correction is established o
 form the data allow finds it (campaign draw 2060: the shared exponent changed the gas by
 6.2 °C rms, the slower wire alone, which explained the held-out blocks as well, by 0.6; the
 change applied had put the gas 1.0 → 3.2 % off).
+So does a **rival** effect: one the round that took the model's last effect found significant
+too and the one taken does not beat clearly on the held-out blocks. The model with it in
+place of the last effect, refitted on the whole record, is one more explanation the data
+allow, and its move and change count as a form's (campaign draw 3402, conduction to lagging
+supports behind a mains line: a calibration with tc2's gain at 0.83 was taken, a conduction
+did as well on the held-out blocks, and the calibration's τ had put the gas 7.40 → 9.00 % off;
+with the conduction's move the band is ±2.3 °C against a change of 1.5, and the default path's
+gas is kept).
 
 Given the τ the default first-order path publishes (``published_taus``), the change is also
 measured against first order there (:attr:`Identification.published_change_c`): what applying
@@ -102,6 +110,7 @@ import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -270,10 +279,11 @@ class Identification:
         Why the band is infinite ('' otherwise).
     form_c : float
         rms move of the gas when the model is refitted in each of its effects' other forms
-        (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`), the largest, degrees C;
-        part of ``band_c`` (in quadrature with the jackknife's); 0 without other forms.
+        (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`) or with a rival effect
+        the held-out data do not rule out in place of the last one taken, the largest,
+        degrees C; part of ``band_c`` (in quadrature with the jackknife's); 0 without either.
     form_note : str
-        Which form moved the gas most and by how much ('' without other forms).
+        Which of them moved the gas most and by how much ('' without either).
     level_split_c : float
         The level difference the effects put between the two sensors, degrees C
         (:func:`level_split_c`).
@@ -506,50 +516,63 @@ def _local_variance(
     return np.clip(np.einsum("tj,jk,tk->t", steps, correlation, steps), 0.0, None)
 
 
-def _form_band(
-    model: Model,
+def _alternatives_band(
     gas: NDArray[np.float64],
     gas_of: Callable[[Model], NDArray[np.float64]],
     change_of: Callable[[Model], float],
-    refit_form: Callable[[str, dict[str, float]], Model | None],
+    alternatives: Sequence[tuple[str, Callable[[], Model | None]]],
     keep: NDArray[np.bool_],
     level_free: bool,
 ) -> tuple[float, float, str]:
-    """What the effects' other forms do to the gas: the largest move, the smallest change.
+    """What the explanations the data do not rule out do to the gas: largest move, smallest change.
 
-    Each form is the model refitted with that form's settings (warm-started at the fit; a form
-    the held-out data rule out, for which ``refit_form`` gives None, is left out). Its
-    move is its gas less the fit's, rms over ``keep`` (the mean removed when ``level_free``);
-    its change is ``change_of`` the refit (against first order at the refit's own τ). Returns
-    the largest move (inf when a refit fails: the form's change cannot be bounded), the
-    smallest change (inf without other forms) and which form moved the gas most.
+    Each alternative is ``(what it is, in words; its refit)``: the model in another of its
+    effects' forms, or with a rival effect in place of the last one taken; a refit that gives
+    None was ruled out by the held-out data. Its move is its gas less the fit's ``gas``, rms
+    over ``keep`` (the mean removed when ``level_free``); its change is ``change_of`` it
+    (against first order at its own τ). Returns the largest move (inf when a refit fails: its
+    change cannot be bounded), the smallest change (inf without alternatives) and which
+    alternative moved the gas most.
     """
     worst, smallest, note = 0.0, math.inf, ""
-    for effect in model.instances:
-        for settings in effect.alternative_forms:
-            label = ", ".join(f"{name} = {value:g}" for name, value in settings.items())
-            try:
-                other = refit_form(effect.name, dict(settings))
-                if other is None:  # the held-out data tell the forms apart
-                    continue
-                move = gas_of(other) - gas
-                change = change_of(other)
-            except (EstimationError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-                failed = f"the refit in {effect.name}'s other form ({label}) failed: {exc}"
-                return math.inf, math.nan, failed
-            if level_free:
-                move = move - np.mean(move[keep])
-            size = _rms(move, keep)
-            if not math.isfinite(size):
-                return math.inf, math.nan, f"the refit in {effect.name}'s other form is not finite"
-            smallest = min(smallest, change)
-            if size >= worst:
-                worst = size
-                note = (
-                    f"{effect.name} in its other form ({label}) moves the gas {size:.3g} degC "
-                    f"rms and changes it by {change:.3g} against its first order"
-                )
+    for label, refit in alternatives:
+        try:
+            other = refit()
+            if other is None:  # the held-out data tell it from the fit
+                continue
+            move = gas_of(other) - gas
+            change = change_of(other)
+        except (EstimationError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            return math.inf, math.nan, f"the refit with {label} failed: {exc}"
+        if level_free:
+            move = move - np.mean(move[keep])
+        size = _rms(move, keep)
+        if not math.isfinite(size):
+            return math.inf, math.nan, f"the refit with {label} is not finite"
+        smallest = min(smallest, change)
+        if size >= worst:
+            worst = size
+            note = (
+                f"{label} moves the gas {size:.3g} degC rms and changes it by {change:.3g} "
+                "against its first order"
+            )
     return worst, smallest, note
+
+
+def _form_alternatives(
+    model: Model, refit_form: Callable[[str, dict[str, float]], Model | None]
+) -> list[tuple[str, Callable[[], Model | None]]]:
+    """The model's effects' other forms as alternatives for :func:`_alternatives_band`."""
+    return [
+        (
+            f"{effect.name} in its other form ("
+            + ", ".join(f"{name} = {value:g}" for name, value in settings.items())
+            + ")",
+            partial(refit_form, effect.name, dict(settings)),
+        )
+        for effect in model.instances
+        for settings in effect.alternative_forms
+    ]
 
 
 def _valley_move(
@@ -641,6 +664,7 @@ def identify(
     published_taus: tuple[float, float] | None = None,
     published_lines: Sequence[ForeignLine] = (),
     refit_form: Callable[[str, dict[str, float]], Model | None] | None = None,
+    rivals: Sequence[tuple[str, Callable[[], Model | None]]] = (),
     level_split: float | None = None,
 ) -> Identification:
     """Check a fitted model's effect parameters and its gas band (see the module docstring).
@@ -681,6 +705,10 @@ def identify(
         form the settings give, or None when the held-out data rule that form out: the
         effects' other forms (:attr:`~tcomp_core.effects.base.Effect.alternative_forms`) are
         tried with it and what they change in the gas joins the band. None: not tried.
+    rivals : sequence of (str, callable)
+        Rival explanations: in words, and a callable giving the model with a rival effect in
+        place of the last one taken, refitted on all rows (None when the held-out data rule
+        it out). What they change in the gas joins the band as the other forms' does.
     level_split : float, optional
         :func:`level_split_c` of the model when the caller has it already (degrees C).
     """
@@ -740,15 +768,16 @@ def identify(
             variance = variance + local_variance
     band_c = math.inf if variance is None else Z95 * math.sqrt(float(np.mean(variance[keep])))
     form_c, form_note = 0.0, ""
-    if refit_form is not None:
-        form_c, smallest, form_note = _form_band(
-            model, gas, gas_of, change_of, refit_form, keep, level_free
+    alternatives = [*(_form_alternatives(model, refit_form) if refit_form else []), *rivals]
+    if alternatives:
+        form_c, smallest, form_note = _alternatives_band(
+            gas, gas_of, change_of, alternatives, keep, level_free
         )
-        if form_c > 0.0:  # the form's move and the data's, independent: in quadrature
+        if form_c > 0.0:  # the alternative's move and the data's, independent: in quadrature
             band_c = math.sqrt(band_c**2 + form_c**2)
         if not math.isfinite(form_c) and not band_note:
             band_note = form_note
-        # A correction is established only if every form finds it.
+        # A correction is established only if every explanation the data allow finds it.
         change_c = min(change_c, smallest) if math.isfinite(smallest) else change_c
     owned = {
         spec.name: (effect.name, spec)

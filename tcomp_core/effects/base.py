@@ -13,14 +13,17 @@ effects composes. Sensor numbers are 1 and 2 (thin and thick wire in the paper's
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..tolerance import class2_level_tolerance_c
+
+if TYPE_CHECKING:
+    from ..lines import ForeignLine
 
 __all__ = [
     "KELVIN",
@@ -304,6 +307,16 @@ class Effect:
             One of :attr:`simulation_forms`.
         """
         return {}
+
+    def taken_off_by_default_path(self, lines: Sequence[ForeignLine]) -> bool:
+        """Whether the default path found this effect and took it off before estimating τ.
+
+        ``lines`` are the lines it found on one channel alone
+        (:attr:`tcomp_core.estimators.Estimate.lines`). Such an effect leaves the base model at
+        that path's τ no error, so no round adds it, and it is named from this instead
+        (:attr:`tcomp_core.diagnose.result.Diagnosis.default_path_findings`). False by default.
+        """
+        return False
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         """Whether a fit of this size is a finding rather than the sensors' ordinary state.
