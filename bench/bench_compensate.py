@@ -30,7 +30,9 @@ draws, pairs found, τ error quantiles, the count of draws where compensation is
 worse (> 1.1× and > 0.1 point) and the median fall on effect draws whose first-order error is
 at least 1 %; also with the level matched (``*_matched``: each gas's mean offset from the truth
 taken off, the part of its error the dynamics decide, since which sensor of a pair that
-disagrees in level is right cannot be seen).
+disagrees in level is right cannot be seen); and the gas of the true effects fitted by name
+(``reconstruct --effects TRUTH``, checked and unchecked) against the default path's: what a
+diagnosis that named every effect right would publish, the ceiling of naming.
 
 ``--forms`` compensates the effects' forms the fit does not assume (the lumped simulator's
 second forms) with the project's form, against the default path's gas.
@@ -54,6 +56,7 @@ import sys
 import time
 from collections import defaultdict
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -241,6 +244,43 @@ def compare(
     return row
 
 
+def truth_named_scores(record: Record, effects: tuple[str, ...]) -> dict:
+    """The gas of the true effects fitted by name (``reconstruct --effects TRUTH``): e_Tg, %.
+
+    What a diagnosis that named every effect right would publish (``smoother_named``, checked
+    by the identification rule as any model is) and the same fit applied unchecked
+    (``smoother_named_unchecked``): the ceiling of naming, on the project's fits, against
+    which the default path's gas and the diagnosis's are read. Empty for a clean draw.
+    """
+    if not effects:
+        return {}
+    from tcomp_core.diagnose import fit_effects
+
+    plain = default_estimate(record)
+    taus = None if plain is None else (float(plain.tau1), float(plain.tau2))
+    lines = () if plain is None else plain.lines
+    diagnosis = fit_effects(
+        record, effects, published_taus=taus, published_lines=lines, published_tried=True
+    )
+    models = {
+        "named": diagnosis,
+        "named_unchecked": replace(diagnosis, final=replace(diagnosis.final, identification=None)),
+    }
+    row: dict = {}
+    for key, judged in models.items():
+        output = output_model_from_diagnosis(
+            judged,
+            origin_s=float(record.time[0]),
+            first_order_taus=taus,
+            first_order_lines=lines,
+            first_order_failure=default_first_order_failure(record, plain),
+        )
+        gas = compensate(output, record.time, record.tc1, record.tc2, record.dt).gas
+        row[f"smoother_{key}"] = scores(record, gas, diagnosis.eval_cutoff_hz, None)[0]
+        row[f"{key}_output"] = output.name()
+    return row
+
+
 def effect_records(quick: bool):
     """Every effect in every form the simulator has for it (the fit's form first)."""
     kinds = ("multisine",) if quick else ("multisine", "exhaust")
@@ -377,8 +417,12 @@ def stream_cost() -> None:
             print(f"{name:<16}{reconstruction:>16}{cost:>14.2f}{cost / base:>15.2f}", flush=True)
 
 
-def campaign_row(index: int) -> dict:
-    """Simulate, diagnose and score draw ``index`` of the campaign (one JSON-ready row)."""
+def campaign_row(index: int, truth_named: bool = False) -> dict:
+    """Simulate, diagnose and score draw ``index`` of the campaign (one JSON-ready row).
+
+    With ``truth_named`` the row also scores the true effects fitted by name
+    (:func:`truth_named_scores`; one more fit per effect draw).
+    """
     item = campaign_draws.draw(index)
     row: dict = {"index": index, "label": item.label, "truth": list(item.effects)}
     row["forms"] = item.forms
@@ -387,6 +431,8 @@ def campaign_row(index: int) -> dict:
         row |= compare(
             record, None, full_band=True, causal_too=False, ungated_too=True, default_too=True
         )
+        if truth_named:
+            row |= truth_named_scores(record, item.effects)
     except Exception as exc:  # a failure is a result of the campaign, not its end
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row
@@ -430,7 +476,7 @@ def run_campaign(count: int, start: int, jobs: int, out: Path) -> list[dict]:
             done[row["index"]] = row
     todo = [i for i in range(start, start + count) if i not in done]
     with out.open("a") as sink, get_context("fork").Pool(jobs) as pool:
-        for row in pool.imap_unordered(campaign_row, todo):
+        for row in pool.imap_unordered(partial(campaign_row, truth_named=True), todo):
             sink.write(json.dumps(row) + "\n")
             sink.flush()
             done[row["index"]] = row
@@ -523,10 +569,22 @@ def summarise_campaign(rows: list[dict]) -> None:
         (("smoother_default", "smoother_final"), "signal band, default"),
         (("smoother_default_full", "smoother_final_full"), "full band, default"),
         (("smoother_default_matched", "smoother_final_matched"), "level matched, default"),
+        (("smoother_default", "smoother_named"), "truth named, default"),
+        (("smoother_default", "smoother_named_unchecked"), "truth named unchecked"),
     ):
-        output = "ungated_output" if "ungated" in final else "output"
+        output = {
+            "smoother_ungated": "ungated_output",
+            "smoother_ungated_full": "ungated_output",
+            "smoother_named": "named_output",
+            "smoother_named_unchecked": "named_unchecked_output",
+        }.get(final, "output")
         # Draws run before a reference was added lack it; nan: the default path refused.
-        scored = [r for r in rows if math.isfinite(r.get(first, math.nan))]
+        # Clean draws have no truth to name, and rows run before it was added lack it.
+        scored = [
+            r
+            for r in rows
+            if math.isfinite(r.get(first, math.nan)) and math.isfinite(r.get(final, math.nan))
+        ]
         worse = [r for r in scored if campaign_draws.materially_worse(r[first], r[final])]
         effect_rows = [r for r in scored if r["truth"] and r[first] >= 1.0]
         falls = [r[first] / r[final] if r[final] > 0 else math.inf for r in effect_rows]
