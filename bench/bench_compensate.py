@@ -184,6 +184,7 @@ def compare(
         "published_change_c": None if found is None else found.published_change_c,
         "evidence_c": None if found is None else found.evidence_c,
         "first_order_fails": bool(failure),
+        "final_at_bound": list(diagnosis.final.at_bound),
         "tau": [base.tau1, base.tau2, diagnosis.final.tau1, diagnosis.final.tau2],
     }
     if ungated_too:
@@ -540,6 +541,12 @@ def summarise_campaign(rows: list[dict]) -> None:
     alarms = sum(bool(row["found"]) for row in clean)
     pair_right = sum(set(row["truth"]) <= set(row["found"]) for row in pairs)
     pair_one = sum(bool(set(row["truth"]) & set(row["found"])) for row in pairs)
+    bounded = [r for r in rows if r["found"] and r.get("final_at_bound")]
+    print(
+        f"verdicts whose final model has a parameter on a bound of its physical range: "
+        f"{len(bounded)}/{sum(bool(r['found']) for r in rows)}"
+        + "".join(f"\n    {r['index']} {r['label']}: {r['final_at_bound']}" for r in bounded)
+    )
     print(
         f"single effects named right {named}/{len(single)} (among the findings {right}); "
         f"clean draws with a false alarm {alarms}/{len(clean)}; pairs: both found "
