@@ -1,9 +1,11 @@
-"""Issue 24: a rival explanation the held-out blocks do not rule out joins the gas band.
+"""Issue 24: which explanations stand beside the one the diagnosis takes.
 
-Campaign draw 3402 (conduction to lagging supports behind a mains line) took a calibration with
-tc2's gain at 0.83 where a conduction explained the held-out blocks as well; the calibration's
-τ put the gas 7.40 → 9.00 % off. What the rival would publish is part of what the data leave
-open; the rival's move in the band: test_compensation.py.
+A rival effect the held-out blocks do not rule out joins the gas band. Campaign draw 3402
+(conduction to lagging supports behind a mains line) took a calibration with tc2's gain at 0.83
+where a conduction explained the held-out blocks as well; the calibration's τ put the gas
+7.40 → 9.00 % off. What the rival would publish is part of what the data leave open (its move
+in the band: test_compensation.py). And an effect the default path takes off before it
+estimates τ is named from that path's own finding, by the effect's module.
 """
 
 import numpy as np
@@ -57,3 +59,13 @@ def test_rivals_are_the_last_rounds_significant_suspects_the_one_taken_does_not_
     # The first round's conduction was no rival to the interference: not significant.
     assert _rivals(Staircase([base, first], rounds[:1], [])) == []
     assert _rivals(Staircase([base], [], [])) == []
+
+
+def test_only_interference_is_named_from_the_lines_the_default_path_takes_off():
+    from tcomp_core.effects import EFFECTS
+    from tcomp_core.lines import ForeignLine
+
+    line = [ForeignLine(frequency_hz=50.0, channel=2, amplitude_c=1.0)]
+    named = {name for name, effect in EFFECTS.items() if effect().taken_off_by_default_path(line)}
+    assert named == {"interference"}
+    assert not any(effect().taken_off_by_default_path([]) for effect in EFFECTS.values())
