@@ -956,7 +956,7 @@ class _Forms:
 
 
 def test_a_form_the_data_cannot_rule_out_widens_the_band_and_must_find_the_change():
-    from tcomp_core.diagnose.identification import _form_band
+    from tcomp_core.diagnose.identification import _alternatives_band, _form_alternatives
 
     keep = np.ones(200, dtype=bool)
     gas = np.sin(np.linspace(0.0, 20.0, 200))
@@ -965,16 +965,16 @@ def test_a_form_the_data_cannot_rule_out_widens_the_band_and_must_find_the_chang
     def gas_of(model):
         return other[model]
 
+    def band(refit_form):
+        alternatives = _form_alternatives(_Forms(), refit_form)
+        return _alternatives_band(gas, gas_of, lambda model: 0.4, alternatives, keep, False)
+
     # Not ruled out: its move is the band's, its (smaller) change the one that counts.
-    move, smallest, note = _form_band(
-        _Forms(), gas, gas_of, lambda model: 0.4, lambda name, s: "moved", keep, False
-    )
+    move, smallest, note = band(lambda name, s: "moved")
     assert move == pytest.approx(0.5 / math.sqrt(2.0), rel=0.05)
     assert smallest == 0.4 and "property_film_weight = 0" in note
     # Ruled out by the held-out data: nothing.
-    assert _form_band(
-        _Forms(), gas, gas_of, lambda model: 0.4, lambda name, s: None, keep, False
-    ) == (0.0, math.inf, "")
+    assert band(lambda name, s: None) == (0.0, math.inf, "")
 
     # A refit that fails leaves the form's change unbounded.
     from tcomp_core.errors import EstimationError
@@ -982,8 +982,8 @@ def test_a_form_the_data_cannot_rule_out_widens_the_band_and_must_find_the_chang
     def failing(name, settings):
         raise EstimationError("no fit")
 
-    move, _, note = _form_band(_Forms(), gas, gas_of, lambda m: 0.4, failing, keep, False)
-    assert math.isinf(move) and "failed" in note
+    move, _, note = band(failing)
+    assert math.isinf(move) and "failed" in note and "property in its other form" in note
 
 
 @pytest.mark.slow

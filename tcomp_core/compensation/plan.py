@@ -305,7 +305,7 @@ class OutputModel:
                 f"disagreement {found.evidence_c:.3g} degC rms"
             )
             if found.form_note:
-                lines.append(f"  form: {found.form_note}")
+                lines.append(f"  also allowed by the data: {found.form_note}")
             if math.isfinite(found.published_change_c):
                 lines.append(
                     f"  against the default first-order gas it changes the gas by "
