@@ -602,6 +602,50 @@ def summarise_campaign(rows: list[dict]) -> None:
                 f"    worse: draw {r['index']} {r['label']}: {r[first]:.2f} -> {r[final]:.2f} "
                 f"({r[output]})"
             )
+    print_goals(rows)
+
+
+def print_goals(rows: list[dict]) -> None:
+    """Issue 24's goals on ``rows`` (scored campaign draws), each with its figure and whether met.
+
+    Against the default path's gas, what a user gets without options: materially worse on no
+    draw, a median fall of 3× on effect draws whose default gas is at least 1 % off, single
+    effects named right on 95 %, no false alarm on clean draws, no verdict resting on a
+    parameter on a bound of its physical range.
+    """
+    scored = [r for r in rows if "error" not in r and math.isfinite(r["smoother_default"])]
+    worse = sum(
+        campaign_draws.materially_worse(r["smoother_default"], r["smoother_final"]) for r in scored
+    )
+    effect_rows = [r for r in scored if r["truth"] and r["smoother_default"] >= 1.0]
+    falls = [r["smoother_default"] / max(r["smoother_final"], 1e-12) for r in effect_rows]
+    median = statistics.median(falls) if falls else math.nan
+    single = [r for r in rows if "error" not in r and len(r["truth"]) == 1]
+    named = sum(r["truth"][0] == r["verdict"] for r in single)
+    share = named / len(single) if single else math.nan
+    clean = [r for r in rows if "error" not in r and not r["truth"]]
+    alarms = sum(bool(r["found"]) for r in clean)
+    recorded = [r for r in rows if "final_at_bound" in r]  # rows of older runs lack it
+    bounded = sum(bool(r["found"] and r["final_at_bound"]) for r in recorded)
+    goals = (
+        ("materially worse than the default path", f"{worse}/{len(scored)}", worse == 0),
+        (
+            "median fall on effect draws, default >= 1 %",
+            f"{median:.2f}x of {len(falls)}",
+            median >= 3.0,
+        ),
+        ("single effects named right", f"{named}/{len(single)}", share >= 0.95),
+        ("false alarms on clean draws", f"{alarms}/{len(clean)}", alarms == 0),
+        (
+            "verdicts with a parameter on a bound",
+            f"{bounded} of {len(recorded)} rows",
+            bounded == 0 if recorded else None,
+        ),
+    )
+    print("\nissue 24's goals on these draws")
+    for name, figure, met in goals:
+        verdict = "not recorded" if met is None else "met" if met else "NOT met"
+        print(f"  {name:<46}{figure:>16}  {verdict}")
 
 
 def _ratio(row: dict, key: str) -> float:
