@@ -5,19 +5,20 @@ A rival effect the held-out blocks do not rule out joins the gas band. Campaign 
 where a conduction explained the held-out blocks as well; the calibration's τ put the gas
 7.40 → 9.00 % off. What the rival would publish is part of what the data leave open (its move
 in the band: test_compensation.py). And an effect the default path takes off before it
-estimates τ is named from that path's own finding, by the effect's module.
+estimates τ is named from that path's own finding, by the effect's module. And no verdict
+rests on a last effect whose whole-record fit ends on a bound of its physical range.
 """
 
 import numpy as np
 
-from tcomp_core.diagnose.pipeline import Staircase, _rivals
+from tcomp_core.diagnose.pipeline import Staircase, _refit_final, _rivals
 from tcomp_core.diagnose.result import ModelFit, Suspect
 
 
-def _fit(effects, raw, blocks):
+def _fit(effects, raw, blocks, params=None, at_bound=()):
     return ModelFit(
         effects=tuple(effects),
-        params={"tau1": 0.02, "tau2": 0.1},
+        params={"tau1": 0.02, "tau2": 0.1, **(params or {})},
         tau1=0.02,
         tau2=0.1,
         error_pct=raw,
@@ -29,6 +30,7 @@ def _fit(effects, raw, blocks):
         gas1=np.zeros(3),
         gas2=np.zeros(3),
         n_params=2 + len(effects),
+        at_bound=tuple(at_bound),
     )
 
 
@@ -69,3 +71,48 @@ def test_only_interference_is_named_from_the_lines_the_default_path_takes_off():
     named = {name for name, effect in EFFECTS.items() if effect().taken_off_by_default_path(line)}
     assert named == {"interference"}
     assert not any(effect().taken_off_by_default_path([]) for effect in EFFECTS.values())
+
+
+class _WholeRecord:
+    """An evaluator whose whole-record refits are given: effects -> the refit's fit."""
+
+    def __init__(self, refits):
+        self.refits = refits
+
+    def refit_whole(self, fit, other_form, rivals):
+        return self.refits[fit.effects]
+
+
+def test_a_last_effect_whose_whole_record_fit_ends_on_a_physical_bound_is_dropped():
+    # Campaign draw 3465: radiation taken on the estimation blocks, its wall at -72.85 degC
+    # (200 K, its bound) once refitted on the whole record, and the verdict was radiation.
+    base = _fit((), 5.0, [5.0] * 5)
+    ordinary = _fit(("property",), 0.64, [0.6] * 5, {"property_exponent": 0.3})
+    radiating = _fit(
+        ("property", "radiation"), 0.5, [0.5] * 5, {"property_exponent": 0.3, "wall_c": 0.0}
+    )
+    on_bound = _fit(
+        ("property", "radiation"),
+        0.5,
+        [0.5] * 5,
+        {"property_exponent": 0.3, "wall_c": -72.85},
+        at_bound=("wall_c",),
+    )
+    whole = {(): base, ("property",): ordinary, ("property", "radiation"): on_bound}
+    rounds = [[_suspect(ordinary)], [_suspect(radiating)]]
+    staircase = Staircase([base, ordinary, radiating], rounds, ["property"])
+    final = _refit_final(_WholeRecord(whole), staircase)
+    assert [step.effects for step in final.steps] == [(), ("property",)]
+    assert final.steps[-1] is ordinary and final.expected == ["property"]
+    assert "radiation was taken on the estimation blocks" in final.note
+    assert "wall_c = -72.85" in final.note
+    # Off its bound on the whole record, it stays.
+    whole[("property", "radiation")] = radiating
+    kept = _refit_final(_WholeRecord(whole), staircase)
+    assert kept.steps[-1] is radiating and kept.note == ""
+    # A τ already on its bound before the effect does not count against it.
+    for_tau = _fit(("radiation",), 0.5, [0.5] * 5, {"wall_c": 0.0}, at_bound=("tau1",))
+    base_on_bound = _fit((), 5.0, [5.0] * 5, at_bound=("tau1",))
+    whole = {(): base_on_bound, ("radiation",): for_tau}
+    steps = Staircase([base_on_bound, for_tau], [[_suspect(for_tau)]], [])
+    assert _refit_final(_WholeRecord(whole), steps).steps[-1] is for_tau

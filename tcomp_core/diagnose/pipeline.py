@@ -35,6 +35,7 @@ from .ranking import (
     MAX_EFFECTS,
     MIN_FALL_PER_FLOOR,
     beats_clearly,
+    degenerate_parameters,
     fit_other_form,
     fit_with_effect,
     is_expected_physics,
@@ -542,10 +543,8 @@ def diagnose(
         record, published_taus, published_lines, published_tried
     )
     staircase = _staircase(evaluator, model, base, candidates, max_effects)
+    staircase = _refit_final(evaluator, staircase)
     steps = staircase.steps
-    steps[-1] = evaluator.refit_whole(
-        steps[-1], partial(fit_other_form, evaluator), _rivals(staircase)
-    )
     findings = [effect for effect in steps[-1].effects if effect not in staircase.expected]
     handled = _taken_off_by_the_default_path(evaluator, findings, candidates)
     verdict = (findings or handled or ["none"])[0]
@@ -562,6 +561,36 @@ def diagnose(
         staircase.note,
         handled,
     )
+
+
+def _refit_final(evaluator: Evaluator, staircase: Staircase) -> Staircase:
+    """The staircase with its last step refitted on the whole record, or dropped if degenerate.
+
+    Held-out blocks chose each step on the estimation blocks, where significance refuses a fit
+    that ends on a bound of an effect's physical range (:func:`.ranking.degenerate_parameters`).
+    The whole record can still take the last effect there; such a fit found no physical
+    explanation, so no verdict rests on it: that step is dropped, the one before refitted in
+    its place, and the note says why (campaign draw 3465, a level-dependent τ on 1 kHz steps
+    read as radiation whose wall went to the record's mean, its bound, on the whole record).
+    """
+    steps, expected, notes = list(staircase.steps), list(staircase.expected), [staircase.note]
+    while True:
+        rivals = _rivals(replace(staircase, steps=steps))
+        steps[-1] = evaluator.refit_whole(steps[-1], partial(fit_other_form, evaluator), rivals)
+        bounded = degenerate_parameters(steps[-1], steps[-2]) if len(steps) > 1 else []
+        if not bounded:
+            note = "; ".join(filter(None, notes))
+            return replace(staircase, steps=steps, expected=expected, note=note)
+        added = next(e for e in steps[-1].effects if e not in steps[-2].effects)
+        notes.append(
+            f"{added} was taken on the estimation blocks, but on the whole record its fit puts "
+            + ", ".join(f"{name} = {steps[-1].params[name]:.4g}" for name in bounded)
+            + " on a bound of its physical range: no physical explanation, so the model "
+            "without it is the final one"
+        )
+        if added in expected:
+            expected.remove(added)
+        steps = steps[:-1]
 
 
 def _rivals(staircase: Staircase) -> list[ModelFit]:

@@ -77,6 +77,7 @@ __all__ = [
     "MAX_EFFECTS",
     "beats_clearly",
     "block_t",
+    "degenerate_parameters",
     "fit_with_effect",
     "implausibility",
     "is_expected_physics",
@@ -199,7 +200,7 @@ def significance_refusal(
             f"({current.raw_error_pct:.3g} -> {candidate.raw_error_pct:.3g} %), "
             f"{100.0 * MIN_RELATIVE_FALL:.3g} % asked"
         )
-    bounded = _degenerate_parameters(candidate, current)
+    bounded = degenerate_parameters(candidate, current)
     if bounded:
         return (
             "its fit puts "
@@ -253,10 +254,10 @@ def _degenerate(candidate: ModelFit, current: ModelFit) -> bool:
     jump of τ is no sign: a missing delay can send the base model's τ1 to a tenth of the truth,
     and the delay brings it back.)
     """
-    return bool(_degenerate_parameters(candidate, current))
+    return bool(degenerate_parameters(candidate, current))
 
 
-def _degenerate_parameters(candidate: ModelFit, current: ModelFit) -> list[str]:
+def degenerate_parameters(candidate: ModelFit, current: ModelFit) -> list[str]:
     """The parameters that make the candidate's fit degenerate (:func:`_degenerate`)."""
     new = set(candidate.params) - set(current.params)
 
