@@ -204,12 +204,8 @@ def _reconstruction_figure(diagnosis: Diagnosis) -> Figure:
 
 
 def _winner_text(diagnosis: Diagnosis) -> str:
-    if diagnosis.verdict in diagnosis.default_path_findings:
-        return (
-            f"Why {diagnosis.verdict}: one channel carries lines the other does not share "
-            "(mains pick-up, named in the notes); the default path takes them off before it "
-            "estimates tau, so the model needs no piece for them"
-        )
+    if diagnosis.verdict in diagnosis.default_path_reasons:
+        return f"Why {diagnosis.verdict}: {diagnosis.default_path_reasons[diagnosis.verdict]}"
     chosen = [s for s in diagnosis.suspects if s.effect == diagnosis.verdict]
     if chosen:
         return f"Why {chosen[0].effect}: {chosen[0].signature}"

@@ -4,9 +4,10 @@ A rival effect the held-out blocks do not rule out joins the gas band. Campaign 
 (conduction to lagging supports behind a mains line) took a calibration with tc2's gain at 0.83
 where a conduction explained the held-out blocks as well; the calibration's τ put the gas
 7.40 → 9.00 % off. What the rival would publish is part of what the data leave open (its move
-in the band: test_compensation.py). And an effect the default path takes off before it
-estimates τ is named from that path's own finding, by the effect's module. And no verdict
-rests on a last effect whose whole-record fit ends on a bound of its physical range.
+in the band: test_compensation.py). An effect the default path accounts for itself (lines it
+takes off, a noise ratio it measures) is named from that path's own finding, by the effect's
+module. And no verdict rests on a last effect whose whole-record fit ends on a bound of its
+physical range.
 """
 
 import numpy as np
@@ -63,14 +64,27 @@ def test_rivals_are_the_last_rounds_significant_suspects_the_one_taken_does_not_
     assert _rivals(Staircase([base], [], [])) == []
 
 
-def test_only_interference_is_named_from_the_lines_the_default_path_takes_off():
+def test_the_effects_the_default_path_accounts_for_are_named_from_its_own_findings():
     from tcomp_core.effects import EFFECTS
+    from tcomp_core.effects.noise_ratio import NOISE_RATIO_FACTOR
     from tcomp_core.lines import ForeignLine
 
+    def found(lines, phi):
+        return {
+            name for name, effect in EFFECTS.items() if effect().found_by_default_path(lines, phi)
+        }
+
     line = [ForeignLine(frequency_hz=50.0, channel=2, amplitude_c=1.0)]
-    named = {name for name, effect in EFFECTS.items() if effect().taken_off_by_default_path(line)}
-    assert named == {"interference"}
-    assert not any(effect().taken_off_by_default_path([]) for effect in EFFECTS.values())
+    assert found(line, 1.0) == {"interference"}
+    assert found([], 1.0) == set()
+    # Noise variances measured to differ beyond the factor, either way; within it, nothing.
+    beyond = 1.05 * NOISE_RATIO_FACTOR
+    assert found([], beyond) == found([], 1.0 / beyond) == {"noise_ratio"}
+    assert found([], 0.95 * NOISE_RATIO_FACTOR) == found([], 1.0 / 1.9) == set()
+    assert found(line, 6.5) == {"interference", "noise_ratio"}
+    assert "phi = sigma1^2/sigma2^2 = 6.5" in EFFECTS["noise_ratio"]().found_by_default_path(
+        [], 6.5
+    )
 
 
 class _WholeRecord:

@@ -89,7 +89,7 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
         label = "base" if not step.effects else "+ " + " + ".join(step.effects)
         lines.append(f"  {label:<40} {step.error_pct:8.3g} %")
     handled = (
-        " (taken off by the default path before it estimates tau: see the notes)"
+        " (found by the default path, which accounts for it itself: see the notes)"
         if diagnosis.verdict in diagnosis.default_path_findings
         else ""
     )

@@ -406,10 +406,12 @@ ORDINARY = {
 
 
 def _diagnosis(
-    evaluator, base, failure, steps, rounds, verdict, expected=(), note="", handled=()
+    evaluator, base, failure, steps, rounds, verdict, expected=(), note="", handled=None
 ) -> Diagnosis:
     data = evaluator.data
+    handled = handled or {}
     notes = _notes(data, evaluator) + ([note] if note else [])
+    notes.extend(f"{name}: {why}" for name, why in handled.items())
     final = Model(steps[-1].effects, steps[-1].params)
     identifiability = [
         text for effect in final.instances if (text := effect.identifiability(final.params))
@@ -443,6 +445,7 @@ def _diagnosis(
         unexplained=describe_unexplained(evaluator, steps[-1]),
         expected_physics=list(expected),
         default_path_findings=list(handled),
+        default_path_reasons=dict(handled),
         identifiability=identifiability,
         context=evaluator.context,
     )
@@ -546,8 +549,8 @@ def diagnose(
     staircase = _refit_final(evaluator, staircase)
     steps = staircase.steps
     findings = [effect for effect in steps[-1].effects if effect not in staircase.expected]
-    handled = _taken_off_by_the_default_path(evaluator, findings, candidates)
-    verdict = (findings or handled or ["none"])[0]
+    handled = _found_by_the_default_path(evaluator, findings, candidates)
+    verdict = (findings or list(handled) or ["none"])[0]
     if verdict == "none" and is_unexplained(steps[-1]):
         verdict = "unexplained"
     return _diagnosis(
@@ -616,22 +619,26 @@ def _rivals(staircase: Staircase) -> list[ModelFit]:
     ]
 
 
-def _taken_off_by_the_default_path(
+def _found_by_the_default_path(
     evaluator: Evaluator, findings: list[str], candidates: Sequence[str]
-) -> list[str]:
-    """Effects among ``candidates``, not in ``findings``, the default path took off itself.
+) -> dict[str, str]:
+    """Effects among ``candidates``, not in ``findings``, that the default path accounts for.
 
-    Each effect says whether the lines that path found on one channel alone
-    (``evaluator.published_lines``) are it
-    (:meth:`~tcomp_core.effects.base.Effect.taken_off_by_default_path`): the base model at
-    that path's τ then leaves them no error, and no round adds them.
+    Each effect says, from what that path found (the lines on one channel alone,
+    ``evaluator.published_lines``, and the measured noise ratio φ̂), whether it is there and
+    why the model needs no piece for it
+    (:meth:`~tcomp_core.effects.base.Effect.found_by_default_path`): name → why.
     """
-    return [
-        name
-        for name in candidates
-        if name not in findings
-        and EFFECTS[name]().taken_off_by_default_path(evaluator.published_lines)
-    ]
+    found = {}
+    for name in candidates:
+        if name in findings:
+            continue
+        why = EFFECTS[name]().found_by_default_path(
+            evaluator.published_lines, evaluator.data.phi_hat
+        )
+        if why:
+            found[name] = why
+    return found
 
 
 def fit_effects(

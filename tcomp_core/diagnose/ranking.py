@@ -65,6 +65,7 @@ from scipy import optimize
 
 from ..effects import EFFECTS, Model
 from ..effects.base import KELVIN, Evidence
+from ..effects.noise_ratio import NOISE_RATIO_FACTOR
 from ..effects.property import tau_swing
 from ..effects.radiation import MIN_RHO as RADIATION_MIN_RHO
 from ..errors import EstimationError, TcompError
@@ -103,10 +104,6 @@ MIN_BLOCK_T = 2.0
 DRIVEN_FACTOR = 3.0
 #: Suspects within this relative error of each other count as a tie.
 TIE_TOLERANCE = 0.03
-#: Noise variance ratio φ̂ beyond which (or below its inverse) unequal noise is a finding by
-#: itself: the spectral estimate of φ is good to ~10 % on clean records, but a fast sensor whose
-#: signal reaches the top of the band (sharp exhaust pulses) reads up to ~1.7 with equal noise.
-NOISE_RATIO_FACTOR = 2.0
 #: Most effects the staircase adds.
 MAX_EFFECTS = 3
 #: Longest τ a verdict may rest on, per record length (:func:`implausibility`).

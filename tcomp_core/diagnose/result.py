@@ -209,11 +209,16 @@ class Diagnosis:
         Effects added to the model as the sensors' ordinary physics, not findings (a ``property``
         of ordinary size: :func:`tcomp_core.diagnose.ranking.is_expected_physics`).
     default_path_findings : list of str
-        Effects found in the record that the default first-order path takes off by itself, so
-        that the model holds no piece for them: ``interference`` when one channel carries lines
-        the other does not share (mains pick-up), which that path notches or subtracts before
-        it estimates τ (:func:`tcomp_core.lines.foreign_lines`; the notes name each line). They
-        are findings: the verdict names the first when the model found nothing else.
+        Effects found in the record that the default first-order path accounts for by itself,
+        so that the model holds no piece for them
+        (:meth:`~tcomp_core.effects.base.Effect.found_by_default_path`): ``interference`` when
+        one channel carries lines the other does not share (mains pick-up), which that path
+        notches or subtracts before it estimates τ (the notes name each line),
+        ``noise_ratio`` when the measured φ̂ shows the sensors' noise to differ, which that
+        path weighs them by. They are findings: the verdict names the first when the model
+        found nothing else.
+    default_path_reasons : dict of str to str
+        Why, for each of ``default_path_findings``, in words.
     """
 
     source: str
@@ -242,6 +247,7 @@ class Diagnosis:
     identifiability: list[str] = field(default_factory=list)
     context: FitContext | None = None
     default_path_findings: list[str] = field(default_factory=list)
+    default_path_reasons: dict[str, str] = field(default_factory=dict)
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
@@ -253,7 +259,7 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
     ``"none"`` or ``"unexplained"``), ``final`` {effects, tau1, tau2, error_pct, intervals_95,
     at_bound, ...}, ``steps`` (the error staircase), ``rounds``, ``ref_error_pct``, ``notes``,
     ``unexplained`` (the residual's signature in words, or ""), ``expected_physics``,
-    ``identifiability``, ``default_path_findings``.
+    ``identifiability``, ``default_path_findings``, ``default_path_reasons``.
     """
     return {
         "source": diagnosis.source,
@@ -281,4 +287,5 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:
         "expected_physics": list(diagnosis.expected_physics),
         "identifiability": list(diagnosis.identifiability),
         "default_path_findings": list(diagnosis.default_path_findings),
+        "default_path_reasons": dict(diagnosis.default_path_reasons),
     }

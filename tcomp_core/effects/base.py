@@ -308,15 +308,16 @@ class Effect:
         """
         return {}
 
-    def taken_off_by_default_path(self, lines: Sequence[ForeignLine]) -> bool:
-        """Whether the default path found this effect and took it off before estimating τ.
+    def found_by_default_path(self, lines: Sequence[ForeignLine], phi_hat: float) -> str:
+        """Why the default path found this effect and accounts for it itself ('' if it did not).
 
-        ``lines`` are the lines it found on one channel alone
-        (:attr:`tcomp_core.estimators.Estimate.lines`). Such an effect leaves the base model at
-        that path's τ no error, so no round adds it, and it is named from this instead
-        (:attr:`tcomp_core.diagnose.result.Diagnosis.default_path_findings`). False by default.
+        ``lines`` are the lines that path found on one channel alone
+        (:attr:`tcomp_core.estimators.Estimate.lines`), ``phi_hat`` the noise variance ratio
+        σ1²/σ2² measured from the spectra. Such an effect may leave the base model at that
+        path's τ no error, so that no round adds it: it is named from this instead
+        (:attr:`tcomp_core.diagnose.result.Diagnosis.default_path_findings`). '' by default.
         """
-        return False
+        return ""
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         """Whether a fit of this size is a finding rather than the sensors' ordinary state.

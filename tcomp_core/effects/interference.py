@@ -158,15 +158,21 @@ class Interference(Effect):
         """interference_hz (Hz) and interference_c, the fundamental's amplitude (degrees C)."""
         return {"interference_hz": 50.0, "interference_c": 1.0}
 
-    def taken_off_by_default_path(self, lines: Sequence[ForeignLine]) -> bool:
-        """Whether the default path took a line off one channel: mains pick-up, this effect.
+    def found_by_default_path(self, lines: Sequence[ForeignLine], phi_hat: float) -> str:
+        """Lines one channel carries alone: mains pick-up, which the default path takes off.
 
-        It notches or subtracts such lines before it estimates τ (campaign draws 3276, 3292,
-        3361, 3366: 50 or 60 Hz with harmonics on tc2, read ``none`` before). On the 151
-        stored campaign draws it found them on every draw with interference (20) and on none
-        without it (131).
+        It notches or subtracts them before it estimates τ (campaign draws 3276, 3292, 3361,
+        3366: 50 or 60 Hz with harmonics on tc2, read ``none`` before). On the 151 stored
+        campaign draws it found them on every draw with interference (20) and on none without
+        it (131).
         """
-        return bool(lines)
+        if not lines:
+            return ""
+        return (
+            "one channel carries lines the other does not share (mains pick-up, named in the "
+            "notes); the default path takes them off before it estimates tau, so the model "
+            "needs no piece for them"
+        )
 
     def material(self, params: Mapping[str, float], evidence: Evidence) -> bool:
         channel = int(params["interference_channel"])
