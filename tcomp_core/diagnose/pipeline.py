@@ -574,7 +574,7 @@ def _refit_final(evaluator: Evaluator, staircase: Staircase) -> Staircase:
     The whole record can still take the last effect there; such a fit found no physical
     explanation, so no verdict rests on it: that step is dropped, the one before refitted in
     its place, and the note says why (campaign draw 3465, a level-dependent τ on 1 kHz steps
-    read as radiation whose wall went to the record's mean, its bound, on the whole record).
+    read as radiation whose wall went to −72.85 °C, the 200 K bound, on the whole record).
     """
     steps, expected, notes = list(staircase.steps), list(staircase.expected), [staircase.note]
     while True:
