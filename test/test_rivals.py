@@ -10,6 +10,8 @@ module. And no verdict rests on a last effect whose whole-record fit ends on a b
 physical range.
 """
 
+import dataclasses
+
 import numpy as np
 
 from tcomp_core.diagnose.pipeline import Staircase, _refit_final, _rivals
@@ -118,7 +120,8 @@ def test_a_last_effect_whose_whole_record_fit_ends_on_a_physical_bound_is_droppe
     final = _refit_final(_WholeRecord(whole), staircase)
     assert [step.effects for step in final.steps] == [(), ("property",)]
     assert final.steps[-1] is ordinary and final.expected == ["property"]
-    assert "radiation was taken on the estimation blocks" in final.note
+    assert "property+radiation was taken on the estimation blocks" in final.note
+    assert "so radiation is dropped" in final.note
     assert "wall_c = -72.85" in final.note
     # Off its bound on the whole record, it stays.
     whole[("property", "radiation")] = radiating
@@ -130,3 +133,17 @@ def test_a_last_effect_whose_whole_record_fit_ends_on_a_physical_bound_is_droppe
     whole = {(): base_on_bound, ("radiation",): for_tau}
     steps = Staircase([base_on_bound, for_tau], [[_suspect(for_tau)]], [])
     assert _refit_final(_WholeRecord(whole), steps).steps[-1] is for_tau
+    # Campaign draw 3503: the first effect's amplitude on its bound under the second, and
+    # still there alone: both are dropped, down to the base model.
+    line = {"interference_b1": 30.0}
+    first = _fit(("interference",), 1.0, [1.0] * 5, line, at_bound=("interference_b1",))
+    second = _fit(("interference", "property"), 0.9, [0.9] * 5, {**line, "property_exponent": 1})
+    whole = {
+        (): base,
+        ("interference",): first,
+        ("interference", "property"): dataclasses.replace(second, at_bound=("interference_b1",)),
+    }
+    rounds = [[_suspect(first)], [_suspect(second)]]
+    final = _refit_final(_WholeRecord(whole), Staircase([base, first, second], rounds, []))
+    assert [step.effects for step in final.steps] == [()]
+    assert final.note.count("interference_b1 = 30") == 2

@@ -571,29 +571,45 @@ def _refit_final(evaluator: Evaluator, staircase: Staircase) -> Staircase:
 
     Held-out blocks chose each step on the estimation blocks, where significance refuses a fit
     that ends on a bound of an effect's physical range (:func:`.ranking.degenerate_parameters`).
-    The whole record can still take the last effect there; such a fit found no physical
-    explanation, so no verdict rests on it: that step is dropped, the one before refitted in
-    its place, and the note says why (campaign draw 3465, a level-dependent τ on 1 kHz steps
-    read as radiation whose wall went to −72.85 °C, the 200 K bound, on the whole record).
+    The whole record can still take an effect there (:func:`_on_a_bound`); such a fit found no
+    physical explanation, so no verdict rests on it: the last step is dropped, the one before
+    refitted in its place, until a fit is physical, and the note says why (campaign draw 3465,
+    a level-dependent τ on 1 kHz steps read as radiation whose wall went to −72.85 °C, the
+    200 K bound, on the whole record).
     """
     steps, expected, notes = list(staircase.steps), list(staircase.expected), [staircase.note]
     while True:
         rivals = _rivals(replace(staircase, steps=steps))
         steps[-1] = evaluator.refit_whole(steps[-1], partial(fit_other_form, evaluator), rivals)
-        bounded = degenerate_parameters(steps[-1], steps[-2]) if len(steps) > 1 else []
+        bounded = _on_a_bound(steps) if len(steps) > 1 else []
         if not bounded:
             note = "; ".join(filter(None, notes))
             return replace(staircase, steps=steps, expected=expected, note=note)
         added = next(e for e in steps[-1].effects if e not in steps[-2].effects)
         notes.append(
-            f"{added} was taken on the estimation blocks, but on the whole record its fit puts "
+            f"{'+'.join(steps[-1].effects)} was taken on the estimation blocks, but on the "
+            "whole record its fit puts "
             + ", ".join(f"{name} = {steps[-1].params[name]:.4g}" for name in bounded)
-            + " on a bound of its physical range: no physical explanation, so the model "
-            "without it is the final one"
+            + f" on a bound of the physical range: no physical explanation, so {added} is "
+            "dropped and the model before it refitted as the final one"
         )
         if added in expected:
             expected.remove(added)
         steps = steps[:-1]
+
+
+def _on_a_bound(steps: list[ModelFit]) -> list[str]:
+    """Parameters of the last step's whole-record fit that make it degenerate.
+
+    Any effect's parameter on a bound of its physical range (the base model's, τ and the
+    level, excepted), and a τ the last effect drove onto its bound
+    (:func:`.ranking.degenerate_parameters`): campaign draw 3503, mains with a calibration
+    read as interference + property, had a line amplitude on its bound and τ1 at 1 % of the
+    truth.
+    """
+    last, base = steps[-1], steps[0]
+    own = [name for name in last.at_bound if name not in base.params]
+    return sorted(set(own) | set(degenerate_parameters(last, steps[-2])))
 
 
 def _rivals(staircase: Staircase) -> list[ModelFit]:
