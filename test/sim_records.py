@@ -46,3 +46,10 @@ def make_pair(
         float(phi),
         int(seed),
     )
+
+
+def record_of(sim, source="sim"):
+    """A simulated record (lumped or detailed physics: time, tc1, tc2, gas, dt) as a Record."""
+    from tcomp_core.io import Record
+
+    return Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=source, dt=sim.dt)

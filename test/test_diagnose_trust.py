@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from detailed_physics import Rig, Wire, simulate_rig
 from scipy import signal
+from sim_records import record_of
 
 from tcomp_core.diagnose import diagnose, fit_effects
 from tcomp_core.diagnose.quantisation import detect_quantisation, in_band_variance
@@ -29,7 +30,7 @@ from tcomp_core.simulate_effects import simulate_effect
 
 
 def _record(sim, name="x"):
-    return Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=name, dt=sim.dt)
+    return record_of(sim, name)
 
 
 def test_radiation_bound_follows_emissivity_one_and_the_weakest_convection():

@@ -16,9 +16,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from sim_records import record_of
 
 from tcomp_core.compensation import compensate, fit_output_model
-from tcomp_core.io import Record
 from tcomp_core.simulate_effects import effect_forms, simulate_effect
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
@@ -42,7 +42,7 @@ def test_the_projects_form_on_the_other_form_is_not_materially_worse_than_first_
     effect, form
 ):
     sim = simulate_effect(effect, "multisine", duration=6.0, noise_percent=1.0, seed=5, form=form)
-    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source=form, dt=sim.dt)
+    record = record_of(sim, form)
     plain = default_gas(record)
     model = fit_output_model(record, (effect,))
     gas = compensate(model, record.time, record.tc1, record.tc2, record.dt).gas
@@ -79,7 +79,7 @@ def test_supports_lagging_beyond_the_record_put_the_constant_supports_form_in_th
         noise_c=(0.12, 0.12),
     )
     sim = simulate_rig(rig)
-    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source="s", dt=sim.dt)
+    record = record_of(sim, "s")
     fit = fit_effects(record, ["conduction"]).final
     found = fit.identification
     assert fit.params["tau_p"] == pytest.approx(record.time[-1] / 3.0, rel=0.01)  # its bound

@@ -11,12 +11,12 @@ from dataclasses import replace
 
 import pytest
 from detailed_physics import Rig, Wire, simulate_rig
+from sim_records import record_of
 
 from tcomp_core.diagnose.pipeline import _base_fit
 from tcomp_core.diagnose.ranking import fit_with_effect
 from tcomp_core.effects import EFFECTS, Model
 from tcomp_core.estimators.default import default_estimate
-from tcomp_core.io import Record
 
 #: Each test fits a delay on a 3 s, 5 kHz detailed-physics record first.
 pytestmark = pytest.mark.slow
@@ -37,7 +37,7 @@ def delayed():
         noise_c=(1.0, 1.0),
     )
     sim = simulate_rig(rig)
-    record = Record(time=sim.time, tc1=sim.tc1, tc2=sim.tc2, ref=sim.gas, source="d", dt=sim.dt)
+    record = record_of(sim, "d")
     plain = default_estimate(record)
     taus = (float(plain.tau1), float(plain.tau2))
     evaluator, start, _, _ = _base_fit(record, taus, plain.lines)

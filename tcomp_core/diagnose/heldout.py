@@ -493,7 +493,10 @@ class Evaluator:
                 if other_form is None
                 else lambda name, settings: other_form(fit, name, settings),
                 rivals=[
-                    (f"the rival model {'+'.join(rival.effects)}", partial(self._refit, rival))
+                    (
+                        f"the rival model {'+'.join(rival.effects)}",
+                        partial(self.refit_as_chosen, Model(rival.effects, rival.params)),
+                    )
                     for rival in rivals
                 ],
             )
@@ -510,9 +513,8 @@ class Evaluator:
             identification=identification,
         )
 
-    def _refit(self, fit: ModelFit) -> Model:
-        """``fit``'s model refitted on the whole record (as :func:`.ranking.fit_other_form`)."""
-        model = Model(fit.effects, fit.params)
+    def refit_as_chosen(self, model: Model) -> Model:
+        """``model`` refitted on the whole record, the parameters the free run chose held."""
         return self.refit_model(model, self.chosen_by_free_run(model))
 
     def _refit_rows(

@@ -248,7 +248,7 @@ def _notes(data: PreparedData, evaluator: Evaluator) -> list[str]:
         )
     # The default path takes these lines off before it estimates τ: interference the base
     # model then leaves no error for (campaign draw 3276: 60 Hz on tc2) is still said, and it
-    # is the verdict when nothing else is found (Diagnosis.default_path_findings).
+    # is the verdict when nothing else is found (Diagnosis.default_path_reasons).
     whose = ", and its tau, the base model's, were estimated without it"
     notes.extend(
         f"tc{line.channel} carries a {line.frequency_hz:.4g} Hz line the other does not "
@@ -444,7 +444,6 @@ def _diagnosis(
         notes=notes,
         unexplained=describe_unexplained(evaluator, steps[-1]),
         expected_physics=list(expected),
-        default_path_findings=list(handled),
         default_path_reasons=dict(handled),
         identifiability=identifiability,
         context=evaluator.context,

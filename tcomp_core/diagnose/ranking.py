@@ -65,7 +65,7 @@ from scipy import optimize
 
 from ..effects import EFFECTS, Model
 from ..effects.base import KELVIN, Evidence
-from ..effects.noise_ratio import NOISE_RATIO_FACTOR
+from ..effects.noise_ratio import noise_ratio_beyond_chance
 from ..effects.property import tau_swing
 from ..effects.radiation import MIN_RHO as RADIATION_MIN_RHO
 from ..errors import EstimationError, TcompError
@@ -138,8 +138,9 @@ def is_significant(
     """Whether ``candidate`` lowers the held-out error of ``current`` significantly.
 
     ``noise_ratio`` is measured, not fitted (φ from the spectra), so it cannot overfit: it is
-    also significant when φ̂ lies outside [1/:data:`NOISE_RATIO_FACTOR`,
-    :data:`NOISE_RATIO_FACTOR`] and the refit does no harm: its raw held-out error within a
+    also significant when φ̂ lies beyond chance
+    (:func:`~tcomp_core.effects.noise_ratio.noise_ratio_beyond_chance`) and the refit does no
+    harm: its raw held-out error within a
     tie (:data:`TIE_TOLERANCE`) or its model error up by less than the fall a significant
     effect needs (:data:`MIN_FALL_PER_FLOOR` noise floors). So is a
     ``delay`` when the readings' measured phase lies beyond the ±90° any two first-order lags
@@ -173,11 +174,7 @@ def significance_refusal(
         candidate.raw_error_pct <= (1.0 + TIE_TOLERANCE) * current.raw_error_pct
         or candidate.error_pct - current.error_pct < MIN_FALL_PER_FLOOR * current.noise_floor_pct
     )
-    if (
-        effect == "noise_ratio"
-        and abs(math.log(phi_hat)) > math.log(NOISE_RATIO_FACTOR)
-        and harmless
-    ):
+    if effect == "noise_ratio" and noise_ratio_beyond_chance(phi_hat) and harmless:
         return ""
     if (
         effect == "delay"
@@ -446,7 +443,7 @@ def fit_other_form(
         fitted = evaluator.fit(start, hold=evaluator.chosen_by_free_run(start))
     if beats_clearly(fit, evaluator.evaluate(fitted)):
         return None
-    return evaluator.refit_model(fitted, evaluator.chosen_by_free_run(fitted))
+    return evaluator.refit_as_chosen(fitted)
 
 
 def next_round(

@@ -208,17 +208,16 @@ class Diagnosis:
     expected_physics : list of str
         Effects added to the model as the sensors' ordinary physics, not findings (a ``property``
         of ordinary size: :func:`tcomp_core.diagnose.ranking.is_expected_physics`).
-    default_path_findings : list of str
+    default_path_reasons : dict of str to str
         Effects found in the record that the default first-order path accounts for by itself,
-        so that the model holds no piece for them
-        (:meth:`~tcomp_core.effects.base.Effect.found_by_default_path`): ``interference`` when
+        so that the model holds no piece for them, each with why in words
+        (:meth:`~tcomp_core.effects.base.Effect.found_by_default_path`; the names alone:
+        :attr:`default_path_findings`): ``interference`` when
         one channel carries lines the other does not share (mains pick-up), which that path
         notches or subtracts before it estimates τ (the notes name each line),
         ``noise_ratio`` when the measured φ̂ shows the sensors' noise to differ, which that
         path weighs them by. They are findings: the verdict names the first when the model
         found nothing else.
-    default_path_reasons : dict of str to str
-        Why, for each of ``default_path_findings``, in words.
     """
 
     source: str
@@ -246,8 +245,12 @@ class Diagnosis:
     expected_physics: list[str] = field(default_factory=list)
     identifiability: list[str] = field(default_factory=list)
     context: FitContext | None = None
-    default_path_findings: list[str] = field(default_factory=list)
     default_path_reasons: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def default_path_findings(self) -> list[str]:
+        """The effects of :attr:`default_path_reasons`, in the order found."""
+        return list(self.default_path_reasons)
 
 
 def diagnosis_to_dict(diagnosis: Diagnosis) -> dict[str, Any]:

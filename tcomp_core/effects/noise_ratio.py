@@ -17,7 +17,7 @@ from .base import Effect, FitContext, OutputEvidence
 if TYPE_CHECKING:
     from ..lines import ForeignLine
 
-__all__ = ["NOISE_RATIO_FACTOR", "NoiseRatio"]
+__all__ = ["NOISE_RATIO_FACTOR", "NoiseRatio", "noise_ratio_beyond_chance"]
 
 #: Noise variance ratio φ̂ beyond which (or below its inverse) unequal noise is a finding by
 #: itself: the spectral estimate of φ is good to ~10 % on clean records, but a fast sensor whose
@@ -25,6 +25,11 @@ __all__ = ["NOISE_RATIO_FACTOR", "NoiseRatio"]
 #: On 241 stored campaign draws φ̂ lay beyond it on all 24 whose sensors' noise differed (σ
 #: ratios 2-3.5: φ̂ 4.37 or more either way) and within 1.32 of 1 on the 217 others.
 NOISE_RATIO_FACTOR = 2.0
+
+
+def noise_ratio_beyond_chance(phi_hat: float) -> bool:
+    """Whether a measured φ̂ lies beyond :data:`NOISE_RATIO_FACTOR` (or below its inverse)."""
+    return abs(math.log(phi_hat)) > math.log(NOISE_RATIO_FACTOR)
 
 
 class NoiseRatio(Effect):
@@ -54,7 +59,7 @@ class NoiseRatio(Effect):
         score worse on the held-out blocks than φ = 1 (campaign draw 3454, φ̂ = 6.5: raw error
         1.57 → 2.03 %), and the draw read ``none``.
         """
-        if not abs(math.log(phi_hat)) > math.log(NOISE_RATIO_FACTOR):
+        if not noise_ratio_beyond_chance(phi_hat):
             return ""
         return (
             f"the sensors' noise variances differ (phi = sigma1^2/sigma2^2 = {phi_hat:.3g} "
