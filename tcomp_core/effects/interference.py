@@ -184,7 +184,7 @@ class Interference(Effect):
 
     def __init__(self) -> None:
         self._cache: tuple[tuple[float, ...], NDArray[np.float64]] | None = None
-        self._waves: tuple[tuple[float, ...], list[NDArray[np.float64]]] | None = None
+        self._waves: list[tuple[tuple[float, ...], list[NDArray[np.float64]]]] = []
 
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         span = 10.0 * context.level_std_c + 10.0
@@ -249,10 +249,13 @@ class Interference(Effect):
         )
         if self._cache is None or self._cache[0] != key:
             # A fit moves the amplitudes more often than the frequency: the waves are kept.
+            # Two frequencies are kept: a Jacobian moves it for one column and back for the rest.
             waves_key = key[:3]
-            if self._waves is None or self._waves[0] != waves_key:
-                self._waves = (waves_key, _harmonics(params["interference_hz"], context.time))
-            line = _line(params, self._waves[1])
+            found = next((w for k, w in self._waves if k == waves_key), None)
+            if found is None:
+                found = _harmonics(params["interference_hz"], context.time)
+                self._waves = [(waves_key, found), *self._waves[:1]]
+            line = _line(params, found)
             line.flags.writeable = False
             self._cache = (key, line)  # one array per parameter set: the fit's memo keys on it
         return self._cache[1]

@@ -8,6 +8,7 @@ well conditioned. These are the workhorses of the steady-state Kalman filter and
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg
@@ -20,6 +21,7 @@ __all__ = [
     "ModalRecursion",
     "apply_matrix",
     "decay_horizon",
+    "driven_states",
     "linear_recursion",
     "matrix_powers",
 ]
@@ -84,6 +86,55 @@ def linear_recursion(
     if inputs.shape[0] * inputs.shape[2] >= SAMPLE_LOOP_SIZE:
         return _sample_recursion(matrix, inputs, initial)
     return _schur_recursion(matrix, inputs, initial)
+
+
+def driven_states(
+    matrix: NDArray[np.float64],
+    input_matrix: NDArray[np.float64],
+    inputs: NDArray[np.float64],
+    initial: NDArray[np.float64],
+) -> Callable[[slice, int], NDArray[np.float64]]:
+    """``x_j = A x_{j-1} + B u_j`` (j = 1..M, one column of inputs), its states on demand.
+
+    :func:`linear_recursion` of ``B u`` where the caller forms only the state components it
+    needs: in the eigenbasis the modes are driven by ``(V⁻¹ B) u`` (one small product with the
+    inputs) and ``V[rows]`` maps them back, where forming every state costs two products
+    with n rows. Asked twice for the same rows and count, the returned function gives the same
+    array bit for bit (the product is the same).
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (n, n)
+        A.
+    input_matrix : ndarray, shape (n, m)
+        B.
+    inputs : ndarray, shape (m, M)
+        u_1..u_M.
+    initial : ndarray, shape (n,)
+        x_0.
+
+    Returns
+    -------
+    callable
+        ``states(rows, count)``: the components ``rows`` of x_1..x_count, shape (r, count).
+    """
+    eigenvalues, vectors = np.linalg.eig(matrix)
+    if np.linalg.cond(vectors) > MODAL_CONDITION:
+        driven = apply_matrix(input_matrix, inputs)[:, :, None]
+        full = linear_recursion(matrix, driven, initial[:, None])[:, :, 0]
+        return lambda rows, count: full[rows, :count]
+    kept = eigenvalues.imag >= 0.0  # real ones, and one of each conjugate pair
+    weight = np.where(eigenvalues.imag[kept] > 0.0, 2.0, 1.0)
+    inverse = np.linalg.inv(vectors)[kept]
+    drive = apply_matrix(inverse @ input_matrix, inputs)
+    start = inverse @ initial
+    modes = np.empty_like(drive)
+    for i, pole in enumerate(eigenvalues[kept]):
+        modes[i], _ = signal.lfilter([1.0], [1.0, -pole], drive[i], zi=pole * start[i : i + 1])
+    back = vectors[:, kept] * weight
+    return lambda rows, count: np.asarray(
+        apply_matrix(back[rows], np.ascontiguousarray(modes[:, :count])).real
+    )
 
 
 def _sample_recursion(
