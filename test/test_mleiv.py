@@ -362,3 +362,52 @@ def test_a_warm_start_with_the_gain_ends_at_the_same_estimate():
             assert getattr(warm, key) == pytest.approx(getattr(cold, key), rel=1e-7)
         assert warm.params["gain"] == pytest.approx(cold.params["gain"], rel=1e-9)
         assert warm.params["tau1_se"] == pytest.approx(cold.params["tau1_se"], rel=1e-5)
+
+
+def test_a_measured_phi_within_the_tolerance_of_the_first_fits_keeps_that_fit():
+    # phi_start (a warm start, e.g. the previous window's) is the first fit's ratio; measured
+    # again with that fit's τ, a ratio within PHI_REFIT_TOLERANCE keeps the fit, which moves τ
+    # far less than its standard error, and one beyond it fits again.
+    from tcomp_core.estimators import PHI_REFIT_TOLERANCE
+
+    pair = make_pair("multisine", noise_percent=3.0, phi=4.0, seed=11)
+    args = (pair.tc1, pair.tc2, pair.dt, "ml-eiv")
+    cold = estimate(*args, phi=None)
+    measured = phi_from_data(pair.tc1, pair.tc2, pair.dt, taus=(cold.tau1, cold.tau2))
+    near = measured * math.exp(0.5 * PHI_REFIT_TOLERANCE)
+    kept = estimate(*args, phi=None, phi_start=near)
+    assert kept.phi == near  # not fitted again
+    assert kept.params["phi_estimated"] == 1.0
+    assert kept.tau1 == pytest.approx(cold.tau1, abs=0.1 * cold.params["tau1_se"])
+    assert kept.tau2 == pytest.approx(cold.tau2, abs=0.1 * cold.params["tau2_se"])
+    far = estimate(*args, phi=None, phi_start=2.0 * measured)
+    assert far.phi == pytest.approx(measured, rel=1e-3)  # measured again, and fitted with it
+    assert far.tau1 == pytest.approx(cold.tau1, abs=0.1 * cold.params["tau1_se"])
+    assert estimate(*args, phi=2.5, phi_start=near).phi == 2.5  # a given φ is used as given
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan])
+def test_a_bad_phi_start_is_refused(bad):
+    pair = make_pair("sinusoid", noise_percent=1.0, seed=1)
+    with pytest.raises(ValueError, match=r"phi_start=.* must be a finite positive number"):
+        estimate(pair.tc1, pair.tc2, pair.dt, "ml-eiv", phi=None, phi_start=bad)
+
+
+def test_each_window_starts_from_the_noise_ratio_the_last_one_measured():
+    from tcomp_core.online import OnlineConfig
+    from tcomp_core.online.estimation import WindowEstimator
+
+    pair = make_pair("multisine", dt=0.0002, duration=4.0, noise_percent=2.0, phi=3.0, seed=4)
+    windows = WindowEstimator(OnlineConfig(phi=0.0), pair.dt)
+    assert windows.job(0).warm_phi is None  # nothing measured yet
+    half = pair.tc1.size // 2
+    windows.extend(pair.tc1[:half], pair.tc2[:half], np.ones(half - 1, bool), linked=False)
+    first = windows.estimate(1)
+    assert first.accepted and first.estimate.params["phi_estimated"] == 1.0
+    rest = slice(half - 1, None)
+    windows.extend(pair.tc1[rest], pair.tc2[rest], np.ones(pair.tc1.size - half, bool), True)
+    job = windows.job(2)
+    assert job.warm_phi == first.estimate.phi
+    second = job.run().estimate
+    assert second.phi == pytest.approx(3.0, rel=0.1)
+    assert second.params["start_warm"] == 1.0

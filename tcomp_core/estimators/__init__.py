@@ -19,6 +19,7 @@ test cells record (``bench/bench_accuracy.py``, rate block).
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -46,6 +47,7 @@ __all__ = [
     "METHODS",
     "PAPER_METHODS",
     "PHI_METHODS",
+    "PHI_REFIT_TOLERANCE",
     "Estimate",
     "Method",
     "beta_gtls",
@@ -66,6 +68,12 @@ __all__ = [
 DIFFERENCE_EQUATION_METHODS: tuple[str, ...] = PAPER_METHODS[1:]
 #: Estimators that take the noise variance ratio φ.
 PHI_METHODS: tuple[str, ...] = ("beta-gtls", "ml-eiv")
+#: Largest |ln| of the ratio between the noise ratio measured with the first fit's τ and the
+#: one that fit used, below which the fit is kept rather than repeated. τ moves by at most
+#: 1e-4 of itself per 1 % of φ (ml-eiv on multisine, pulses and ramps at 0.5-5 kHz, K 1-4 %,
+#: φ 0.3-4), so a 2 % difference moves it by 0.02 % at most, far inside its standard error
+#: (0.1-0.7 % on those records); the refit cost a second search on every window of a stream.
+PHI_REFIT_TOLERANCE = 0.05
 
 
 def estimate(
@@ -79,6 +87,7 @@ def estimate(
     prefilter_hz: float | None = None,
     names: tuple[str, str] = ("tc1", "tc2"),
     start: tuple[float, ...] | None = None,
+    phi_start: float | None = None,
     reject_lines: bool | None = None,
 ) -> Estimate:
     """Estimate the time constants of two thermocouples from their signals alone.
@@ -97,8 +106,9 @@ def estimate(
         is equal); ``None`` measures it: from the raw signals' spectra (before any
         pre-filter) for a first estimate, then from the model with that estimate's τ
         (:func:`tcomp_core.noise.model_noise`, which removes the gas signal the spectra share)
-        for the final one; ``params["phi_estimated"] = 1.0``. Refused for the other
-        methods, which assume equal noise.
+        for the final one (refitted only when that ratio differs from the first by more
+        than :data:`PHI_REFIT_TOLERANCE`); ``params["phi_estimated"] = 1.0``. Refused for
+        the other methods, which assume equal noise.
     alpha : float, optional
         Time constant ratio τ1/τ2 for ``tdr-kee`` (estimated at signal crossovers if omitted);
         refused for the other methods, which need no prior.
@@ -111,6 +121,10 @@ def estimate(
         window's), and the gain between the sensors (``params["gain"]``, 1 when left out);
         ignored by the other methods, which are not iterative. The refits after lines are
         notched and after φ is measured start from the first fit's τ and gain.
+    phi_start : float, optional
+        With ``phi=None``: the noise ratio the first fit uses instead of the raw spectra's
+        (a warm start, e.g. the ratio the previous window measured); φ is then measured with
+        that fit's τ as without it. Ignored when ``phi`` is given.
     reject_lines : bool, optional
         Look for spectral lines one sensor carries and the other does not (mains pick-up,
         :func:`tcomp_core.lines.foreign_lines`) and, where there are any, estimate again with
@@ -151,7 +165,11 @@ def estimate(
         )
     raw = (first, second)
     measured = phi is None
-    if phi is None:
+    if phi is None and phi_start is not None:
+        if not (math.isfinite(phi_start) and phi_start > 0.0):
+            raise ValueError(f"phi_start={phi_start!r} must be a finite positive number")
+        phi = phi_start
+    elif phi is None:
         # Before the pre-filter, which would remove the band the noise is measured in.
         try:
             phi = phi_from_data(first, second, dt)
@@ -202,11 +220,13 @@ def estimate(
         raise refused
     if measured:
         try:
-            phi = phi_from_data(*raw, dt, taus=(result.tau1, result.tau2))
+            refined = phi_from_data(*raw, dt, taus=(result.tau1, result.tau2))
         except DataError:  # the model leaves no noise on one channel: keep the first φ
             measured = False
+        else:
+            if abs(math.log(refined / phi)) > PHI_REFIT_TOLERANCE:
+                result = _dispatch(first, second, dt, method, refined, alpha, warm_start(result))
     if measured:
-        result = _dispatch(first, second, dt, method, phi, alpha, warm_start(result))
         result = replace(result, params={**result.params, "phi_estimated": 1.0}, lines=lines)
     if prefilter_hz is None:
         return result

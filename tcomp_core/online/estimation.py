@@ -57,6 +57,8 @@ class WindowEstimator:
         self._tracker = self._new_tracker()
         #: τ1, τ2 (and gain) of the last estimate, the warm start of the next ``ml-eiv`` search.
         self._warm: tuple[float, ...] | None = None
+        #: The noise ratio the last estimate measured, the next one's first (None: not measured).
+        self._warm_phi: float | None = None
 
     # -- state ---------------------------------------------------------------------------------
     @property
@@ -205,15 +207,17 @@ class WindowEstimator:
             rows=window.rows,
             dt=window.dt,
             warm=self._warm,
+            warm_phi=self._warm_phi,
             solved=result,
             same_problem=from_window and config.method == "beta-gtls",
         )
 
     def adopt(self, status: EstimateStatus) -> None:
-        """Take a job's status: its τ and gain warm-start the next ``ml-eiv`` search."""
+        """Take a job's status: its τ, gain and measured φ warm-start the next ``ml-eiv``."""
         estimate = status.estimate
         if estimate is not None and estimate.method == "ml-eiv":
             self._warm = warm_start(estimate)
+            self._warm_phi = estimate.phi if estimate.params.get("phi_estimated") else None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -240,6 +244,9 @@ class EstimationJob:
     warm : tuple of float or None
         Start of an ``ml-eiv`` search: τ1, τ2 (s) and the gain
         (:func:`~tcomp_core.estimators.warm_start`).
+    warm_phi : float or None
+        The noise ratio the last estimate measured: the first fit's when φ is measured
+        (``estimate``'s ``phi_start``).
     solved : Estimate or str or None
         The result of an O(1) path, or its error message; None: the batch estimator runs.
     same_problem : bool
@@ -255,6 +262,7 @@ class EstimationJob:
     rows: int = 0
     dt: float = math.nan
     warm: tuple[float, ...] | None = None
+    warm_phi: float | None = None
     solved: Estimate | str | None = None
     same_problem: bool = False
 
@@ -338,6 +346,7 @@ class EstimationJob:
             phi=phi,
             prefilter_hz=prefilter_hz,
             start=self.warm,
+            phi_start=self.warm_phi if phi is None else None,
         )
 
     def _noise_floor_percent(
