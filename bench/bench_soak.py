@@ -16,8 +16,10 @@ samples. The slope's standard error is printed too: a slope within two of them i
     rclpy subscriber spinning as the node does (EventsExecutor) that only counts; its growth,
     measured over the same seconds, is the baseline of rclpy and DDS at this rate, and the
     node's growth is also printed against it. The node's fitting and diagnosis worker
-    processes are sampled too (their sum is printed, they are separate processes). CPU % of
-    the node and the machine is from bench_realtime.py's sampler.
+    processes are sampled too (their sum is printed, they are separate processes), and so is
+    the publisher: a bare rclpy publisher at the node's rate, the baseline for the node's own
+    publishing (the node publishes the gas at the pair rate). CPU % of the node and the
+    machine is from bench_realtime.py's sampler.
 
 ``--mode engine`` – the node's engine alone, in this process
     :class:`tcomp_core.online.Engine` (the pair matcher, :class:`~tcomp_core.online.
@@ -320,6 +322,7 @@ def run_node(args: argparse.Namespace) -> dict:
         )
         series = {"node": Series("node RSS"), "counter": Series("bare subscriber RSS")}
         series["workers"] = Series("node's worker processes RSS")
+        series["publisher"] = Series("bare publisher RSS")
         start = time.monotonic()
         deadline = start + args.duration + 90.0
         next_sample = 0.0
@@ -330,6 +333,7 @@ def run_node(args: argparse.Namespace) -> dict:
                 series["counter"].add(wall, rss_bytes(counter.pid))
                 workers = [rss_bytes(pid) for pid in _descendants(node.pid)]
                 series["workers"].add(wall, sum(w for w in workers if w is not None))
+                series["publisher"].add(wall, rss_bytes(pub.pid))
                 sampler.sample()
                 next_sample += args.interval
             children.check_alive("compensator", "counter")
