@@ -71,7 +71,7 @@ def test_the_backlog_keeps_at_most_one_window(pair_factory):
         out, _, _ = engine.add_pairs(stamps[part], np.full(100, 50.0), np.full(100, 50.0))
         assert out.size == 0
     assert engine.tau is None
-    held = engine._backlog_rows
+    held = engine.held_pairs
     assert 500 <= held <= 600
     assert engine.counters["unreconstructed"] + held == n - 1
 

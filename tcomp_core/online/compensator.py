@@ -171,6 +171,11 @@ class OnlineCompensator:
         return self._config
 
     @property
+    def held_pairs(self) -> int:
+        """Pairs held for the first τ or the first Kalman filter, not reconstructed yet."""
+        return self._backlog_rows
+
+    @property
     def period_s(self) -> float | None:
         """Sample period in seconds, once known."""
         return self._period

@@ -409,6 +409,8 @@ class HealthMonitor:
             "malformed_tc2": str(counters.malformed[1]),
             "discontinuities": str(counters.discontinuities),
             "published": str(published),
+            "held": str(engine.held_pairs),
+            "unreconstructed": str(engine.counters["unreconstructed"]),
             "widened": str(engine.widened),
             "estimate_age_s": format_value(age),
             **extra,
