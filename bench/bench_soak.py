@@ -42,6 +42,11 @@ samples. The slope's standard error is printed too: a slope within two of them i
     retention from use). ``--tracemalloc N`` starts tracing after the warm-up, takes a
     snapshot after another warm-up and one at the end, and prints the N biggest differences
     grouped by traceback (tracing slows the engine tenfold: use it to hunt, not to measure).
+    In node mode ``--tracemalloc N`` runs the node through ``rt_node_trace.py``: its traced
+    Python memory (every object and numpy buffer it holds) is sampled beside its RSS and
+    given a slope after twice the warm-up, with the N biggest differences; RSS that grows
+    while the traced memory does not grows in native code (rclpy, the middleware, the C
+    allocator). Tracing slows the node: give it a rate it keeps up with.
 
 Run::
 
@@ -51,6 +56,7 @@ Run::
     .venv/bin/python bench/bench_soak.py --mode engine --unpaced --duration 240
     .venv/bin/python bench/bench_soak.py --mode engine --unpaced --duration 240 --glibc-dynamic
     .venv/bin/python bench/bench_soak.py --mode engine --unpaced --duration 300 --tracemalloc 12
+    .venv/bin/python bench/bench_soak.py --rate 2000 --duration 1200 --tracemalloc 8
     MALLOC_ARENA_MAX=2 .venv/bin/python bench/bench_soak.py --mode engine --glibc-dynamic
 
 The script exits 0 whatever the outcome; with ``--json PATH`` it also writes its figures there.
@@ -300,8 +306,24 @@ def run_node(args: argparse.Namespace) -> dict:
     sampler = rt.CpuSampler()
     print(f"bench_soak: ROS_DOMAIN_ID={domain}, work dir {workdir}", flush=True)
     node_args = argparse.Namespace(node_probe=False, node_profile=False)
+    command = rt.node_command(node_args, workdir, parameters(args))
+    trace = workdir / "node_trace.jsonl"
+    if args.tracemalloc:  # the same node, its Python allocations traced (rt_node_trace.py)
+        options = [
+            "--out",
+            str(trace),
+            "--start",
+            str(args.warmup),
+            "--top",
+            str(args.tracemalloc),
+        ]
+        options += ["--frames", str(args.frames)]
+        ros_args = command[command.index("--ros-args") :]
+        command = [sys.executable, str(Path(__file__).with_name("rt_node_trace.py")), *options]
+        command += ros_args
     try:
-        node = children.start("compensator", rt.node_command(node_args, workdir, parameters(args)))
+        start = time.monotonic()
+        node = children.start("compensator", command)
         sampler.watch("compensator", node.pid)
         stop = workdir / "counter.stop"
         ready = workdir / "counter.ready"
@@ -323,7 +345,6 @@ def run_node(args: argparse.Namespace) -> dict:
         series = {"node": Series("node RSS"), "counter": Series("bare subscriber RSS")}
         series["workers"] = Series("node's worker processes RSS")
         series["publisher"] = Series("bare publisher RSS")
-        start = time.monotonic()
         deadline = start + args.duration + 90.0
         next_sample = 0.0
         while pub.poll() is None:
@@ -351,9 +372,22 @@ def run_node(args: argparse.Namespace) -> dict:
         children.stop("compensator", signal.SIGINT, timeout=10.0)
         counted = json.loads(counter_out.read_text()) if counter_out.exists() else {}
         t0, t1 = published["t0_ns"], published["t_end_ns"]
+        growth = [s.growth(args.warmup) for s in series.values()]
+        top: list[dict] = []
+        if args.tracemalloc and trace.exists():
+            traced = Series("node: Python's traced memory")
+            for line in trace.read_text().splitlines():
+                entry = json.loads(line)
+                if "t" in entry:
+                    traced.add(entry["t"] - start, entry["traced"])
+                top = entry.get("top", top)
+            # Tracing sees only blocks allocated after it starts: buffers made before are
+            # counted as they are reallocated, so its first warm-up is left out as well.
+            growth.append(traced.growth(2 * args.warmup))
         return {
             "mode": "node",
-            "growth": [s.growth(args.warmup) for s in series.values()],
+            "growth": growth,
+            "traced_top": top,
             "pairs_sent": published["n"],
             "achieved_pairs_per_s": published["achieved_pairs_per_s"],
             "counter_received": counted.get("received"),
@@ -408,6 +442,14 @@ def print_report(args: argparse.Namespace, result: dict) -> None:
         base = result["growth"][1]
         ratio = first["slope"] / base["slope"] if base["slope"] else math.nan
         print(f"node against the bare subscriber, same run: {ratio:.2f} x its growth")
+        if result.get("traced_top"):
+            print(
+                f"node: the {len(result['traced_top'])} biggest traced differences since "
+                "twice the warm-up"
+            )
+            for stat in result["traced_top"]:
+                print(f"  {stat['size_diff'] / 1024:+9.1f} KiB {stat['count_diff']:+7d} blocks")
+                print("\n".join(f"      {line}" for line in stat["traceback"][-4:]))
         print(
             f"pairs sent {result['pairs_sent']} at {result['achieved_pairs_per_s']:.0f}/s; "
             f"counter received {result['counter_received']} messages; node CPU "
@@ -456,7 +498,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--trim", type=float, default=0.0, help="engine: malloc_trim every, s")
     parser.add_argument("--seed", type=int, default=0, help="engine: the signal's noise seed")
     parser.add_argument(
-        "--tracemalloc", type=int, default=0, metavar="N", help="engine: top N differences"
+        "--tracemalloc",
+        type=int,
+        default=0,
+        metavar="N",
+        help="trace Python's allocations (the node's, or the engine's); top N differences",
     )
     parser.add_argument("--frames", type=int, default=6, help="tracemalloc traceback depth")
     parser.add_argument("--keep", action="store_true", help="node: keep the work directory")

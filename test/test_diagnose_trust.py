@@ -19,6 +19,8 @@ from tcomp_core.diagnose.quantisation import detect_quantisation, in_band_varian
 from tcomp_core.diagnose.ranking import MIN_FALL_PER_FLOOR, is_significant
 from tcomp_core.diagnose.result import ModelFit
 from tcomp_core.effects import EFFECT_NAMES, make_context
+from tcomp_core.effects.calibration import GAIN_HELD
+from tcomp_core.effects.model import Model
 from tcomp_core.effects.radiation import (
     SIMULATED_GAS_MEAN_C,
     SIMULATED_RHO1,
@@ -238,6 +240,39 @@ def test_a_delay_of_a_few_samples_at_a_high_rate_is_the_verdict(kind, dt, delay_
     found = diagnose(_record(sim))
     assert found.verdict == "delay"
     assert found.final.params["delay_s"] == pytest.approx(delay_s, rel=0.25)
+
+
+@pytest.mark.slow
+def test_a_level_difference_one_tone_cannot_tell_from_a_gain_is_named_calibration():
+    """On a rotating disk (nearly one tone) a gain trades with τ along the tone's amplitude
+    ratio: fitted free it went to its bound and the fit was refused, leaving the record
+    unexplained. The gain held at 1, the level difference beyond class 2 is the verdict."""
+    rig = _rig(calibration=(1, 0.958, 8.9), noise_c=(0.2, 0.2), seed=11)
+    rec = simulate_rig(rig)
+    found = diagnose(_record(rec))
+    assert found.verdict == "calibration", [(s.effect, s.error_pct) for s in found.suspects[:3]]
+    params = found.final.params
+    assert params[GAIN_HELD] == 1.0 and params["gain"] == 1.0
+    assert "gain held at 1" in " ".join(found.identifiability)
+    # tc2 against tc1 at the mean level: tc1 reads 0.958 T + 8.9 where tc2 reads T.
+    level = float(np.mean(rec.tc1))
+    truth = (level - 8.9) / 0.958 - level
+    assert params["offset_c"] == pytest.approx(truth, abs=0.5)
+    # The 4.4 % gain the tone does not show is taken into τ2 (about 6 % short here).
+    assert found.final.tau1 == pytest.approx(rec.truth["tau1"], rel=0.08)
+    assert found.final.tau2 == pytest.approx(rec.truth["tau2"], rel=0.08)
+
+
+def test_a_setting_that_holds_a_parameter_holds_it_in_every_fit():
+    sim = simulate_effect("calibration", "multisine", noise_percent=1.0, seed=2)
+    context = make_context(sim.time, sim.tc1, sim.tc2, sim.dt)
+    start = {"tau1": sim.tau1, "tau2": sim.tau2}
+    held = Model(("calibration",), {**start, GAIN_HELD: 1.0})
+    assert "gain" not in {spec.name for spec in held.problem(sim.tc1, sim.tc2, context).specs}
+    fitted = held.fit(sim.tc1, sim.tc2, context)
+    assert fitted.params["gain"] == 1.0 and fitted.params[GAIN_HELD] == 1.0
+    free = Model(("calibration",), {**start, GAIN_HELD: 0.0}).fit(sim.tc1, sim.tc2, context)
+    assert free.params["gain"] == pytest.approx(sim.params["gain"], rel=0.005)
 
 
 @pytest.mark.slow

@@ -356,6 +356,16 @@ class Effect:
         """Whether ``params`` mark this effect as refined on the free-run error."""
         return bool(self.free_run_setting) and params.get(self.free_run_setting, 0.0) == 1.0
 
+    def held_by_setting(self, params: Mapping[str, float]) -> dict[str, float]:
+        """Parameters a setting in ``params`` holds, with the values they are held at.
+
+        A setting choice (:attr:`setting_choices`) may leave out a parameter that a record
+        cannot pin, holding it at the value that means "no such term"; every fit of the
+        model then holds it there (:meth:`tcomp_core.effects.model.Model.problem`), and the
+        held-out error chooses between the choices as it does for any setting.
+        """
+        return {}
+
     def specs(self, context: FitContext) -> tuple[ParamSpec, ...]:
         """The effect's fitted parameters and their bounds for this record."""
         return ()

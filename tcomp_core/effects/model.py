@@ -766,7 +766,12 @@ class Model:
         EstimationError
             If too few rows are usable for the parameters.
         """
-        specs = [spec for spec in self.specs(context) if spec.name not in hold]
+        held = {
+            k: v
+            for effect in self.instances
+            for k, v in effect.held_by_setting(self.params).items()
+        }
+        specs = [spec for spec in self.specs(context) if spec.name not in hold | held.keys()]
         rows = np.ones(tc1.size - 1, dtype=bool) if rows is None else rows
         rows = rows & self._valid_rows(tc1.size, context)
         n_rows = int(rows.sum())
@@ -780,7 +785,7 @@ class Model:
         settings = [c for e in self.instances for c in (*e.setting_choices, *e.alternative_forms)]
         setting_names = {name for choice in settings for name in choice}
         carried = (setting_names | hold) & self.params.keys()
-        fixed = {**{n: self.params[n] for n in carried}, **fixed}
+        fixed = {**{n: self.params[n] for n in carried}, **held, **fixed}
 
         def unpack(x: NDArray[np.float64]) -> dict[str, float]:
             values = dict(fixed)
