@@ -160,10 +160,11 @@ def child_publisher(args: argparse.Namespace) -> None:
         now = time.time_ns()
         due = min(((now - t0) * rate_int) // giga + 1, n) if now >= t0 else 0
         if due > k:
-            batch_lag_ns.append(now - (t0 + (k * giga) // rate_int))
-            batch_sizes.append(due - k)
-            batch_first.append(k)
-            batch_sent_ns.append(now)
+            if args.batch_log:
+                batch_lag_ns.append(now - (t0 + (k * giga) // rate_int))
+                batch_sizes.append(due - k)
+                batch_first.append(k)
+                batch_sent_ns.append(now)
             for j in range(k, due):
                 stamp = t0 + (j * giga) // rate_int
                 publish1(encode(stamp, tc1[j % loop]))
@@ -324,6 +325,12 @@ def child_main(argv: list[str]) -> None:
     parser.add_argument("--pub-period-ms", type=float, default=1.0)
     parser.add_argument("--match-timeout", type=float, default=30.0)
     parser.add_argument("--loop-s", type=float, default=0.0, help="publisher: repeat after, s")
+    parser.add_argument(
+        "--batch-log",
+        type=int,
+        default=1,
+        help="publisher: keep each batch's lag and size (0: keep nothing that grows, a soak)",
+    )
     parser.add_argument("--timeline-s", type=float, default=0.1, help="counter: timeline step")
     args = parser.parse_args(argv)
     CHILDREN[args.role](args)

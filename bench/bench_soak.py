@@ -17,9 +17,9 @@ samples. The slope's standard error is printed too: a slope within two of them i
     measured over the same seconds, is the baseline of rclpy and DDS at this rate, and the
     node's growth is also printed against it. The node's fitting and diagnosis worker
     processes are sampled too (their sum is printed, they are separate processes), and so is
-    the publisher: a bare rclpy publisher at the node's rate, the baseline for the node's own
-    publishing (the node publishes the gas at the pair rate). CPU % of the node and the
-    machine is from bench_realtime.py's sampler.
+    the publisher: a bare rclpy publisher of both inputs, keeping no per-batch records here,
+    the baseline for the node's own publishing (the node publishes the gas at the pair rate).
+    CPU % of the node and the machine is from bench_realtime.py's sampler.
 
 ``--mode engine`` – the node's engine alone, in this process
     :class:`tcomp_core.online.Engine` (the pair matcher, :class:`~tcomp_core.online.
@@ -43,10 +43,11 @@ samples. The slope's standard error is printed too: a slope within two of them i
     snapshot after another warm-up and one at the end, and prints the N biggest differences
     grouped by traceback (tracing slows the engine tenfold: use it to hunt, not to measure).
     In node mode ``--tracemalloc N`` runs the node through ``rt_node_trace.py``: its traced
-    Python memory (every object and numpy buffer it holds) is sampled beside its RSS and
-    given a slope after twice the warm-up, with the N biggest differences; RSS that grows
-    while the traced memory does not grows in native code (rclpy, the middleware, the C
-    allocator). Tracing slows the node: give it a rate it keeps up with.
+    Python memory (every object and numpy buffer it holds) and tracemalloc's own tables (native
+    memory, part of the RSS) are sampled beside its RSS and given slopes after twice the
+    warm-up, with the N biggest differences; RSS that grows by more than those tables while
+    the traced memory does not grows in native code (rclpy, the middleware, the C allocator).
+    Tracing slows the node: give it a rate it keeps up with.
 
 Run::
 
@@ -341,6 +342,7 @@ def run_node(args: argparse.Namespace) -> dict:
             duration=args.duration,
             pub_period_ms=1.0,
             loop_s=args.loop_s,
+            batch_log=0,  # its per-batch records grew ~0.5 GB an hour: no baseline then
         )
         series = {"node": Series("node RSS"), "counter": Series("bare subscriber RSS")}
         series["workers"] = Series("node's worker processes RSS")
@@ -376,14 +378,16 @@ def run_node(args: argparse.Namespace) -> dict:
         top: list[dict] = []
         if args.tracemalloc and trace.exists():
             traced = Series("node: Python's traced memory")
+            own = Series("node: tracemalloc's own tables")
             for line in trace.read_text().splitlines():
                 entry = json.loads(line)
                 if "t" in entry:
                     traced.add(entry["t"] - start, entry["traced"])
+                    own.add(entry["t"] - start, entry.get("own"))
                 top = entry.get("top", top)
             # Tracing sees only blocks allocated after it starts: buffers made before are
             # counted as they are reallocated, so its first warm-up is left out as well.
-            growth.append(traced.growth(2 * args.warmup))
+            growth += [traced.growth(2 * args.warmup), own.growth(2 * args.warmup)]
         return {
             "mode": "node",
             "growth": growth,

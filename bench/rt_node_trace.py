@@ -2,7 +2,8 @@
 
 Runs :func:`tcomp_ros.compensator.main` unchanged; a thread starts :mod:`tracemalloc` after
 ``--start`` seconds, appends the traced size (every Python object and numpy buffer the node
-holds) to ``--out`` as a JSON line every ``--interval`` seconds, and on exit (SIGINT, as the
+holds) and tracemalloc's own memory (its tables, native memory that the node's RSS includes)
+to ``--out`` as a JSON line every ``--interval`` seconds, and on exit (SIGINT, as the
 bench stops the node) writes the ``--top`` biggest differences, grouped by traceback, between a
 snapshot taken ``--start`` seconds after tracing began and the end. A node whose resident
 memory grows while the traced size stays flat grows in native code (rclpy, the middleware,
@@ -35,7 +36,9 @@ def _trace(out: Path, start_s: float, interval_s: float, stop: threading.Event, 
     with out.open("a") as file:
         while not stop.wait(interval_s):
             traced = tracemalloc.get_traced_memory()[0]
-            file.write(json.dumps({"t": time.monotonic(), "traced": traced}) + "\n")
+            # tracemalloc's own tables (native memory, in the RSS): not the node's growth.
+            own = tracemalloc.get_tracemalloc_memory()
+            file.write(json.dumps({"t": time.monotonic(), "traced": traced, "own": own}) + "\n")
             file.flush()
             if state["baseline"] is None and time.monotonic() - began >= start_s:
                 state["baseline"] = tracemalloc.take_snapshot()
