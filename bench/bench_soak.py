@@ -310,20 +310,11 @@ def run_node(args: argparse.Namespace) -> dict:
     command = rt.node_command(node_args, workdir, parameters(args))
     trace = workdir / "node_trace.jsonl"
     if args.tracemalloc:  # the same node, its Python allocations traced (rt_node_trace.py)
-        options = [
-            "--out",
-            str(trace),
-            "--start",
-            str(args.warmup),
-            "--top",
-            str(args.tracemalloc),
-        ]
-        options += ["--frames", str(args.frames)]
-        ros_args = command[command.index("--ros-args") :]
-        command = [sys.executable, str(Path(__file__).with_name("rt_node_trace.py")), *options]
-        command += ros_args
+        tracer = [sys.executable, str(Path(__file__).with_name("rt_node_trace.py"))]
+        tracer += ["--out", str(trace), "--start", str(args.warmup)]
+        tracer += ["--top", str(args.tracemalloc), "--frames", str(args.frames)]
+        command = tracer + command[command.index("--ros-args") :]
     try:
-        start = time.monotonic()
         node = children.start("compensator", command)
         sampler.watch("compensator", node.pid)
         stop = workdir / "counter.stop"
@@ -347,6 +338,7 @@ def run_node(args: argparse.Namespace) -> dict:
         series = {"node": Series("node RSS"), "counter": Series("bare subscriber RSS")}
         series["workers"] = Series("node's worker processes RSS")
         series["publisher"] = Series("bare publisher RSS")
+        start = time.monotonic()
         deadline = start + args.duration + 90.0
         next_sample = 0.0
         while pub.poll() is None:
@@ -381,7 +373,7 @@ def run_node(args: argparse.Namespace) -> dict:
             own = Series("node: tracemalloc's own tables")
             for line in trace.read_text().splitlines():
                 entry = json.loads(line)
-                if "t" in entry:
+                if "t" in entry:  # the tracer's monotonic clock is this process's
                     traced.add(entry["t"] - start, entry["traced"])
                     own.add(entry["t"] - start, entry.get("own"))
                 top = entry.get("top", top)

@@ -77,8 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return node_main([sys.argv[0], *argv[split:]])  # rclpy skips the program name
     finally:
-        differences = _top_differences(state, args.top)
         stop.set()
+        tracer.join(timeout=5.0)  # its last line written before this one
+        differences = _top_differences(state, args.top)
         with args.out.open("a") as file:
             file.write(json.dumps({"top": differences}) + "\n")
 

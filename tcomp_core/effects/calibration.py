@@ -132,7 +132,7 @@ class Calibration(Effect):
             + (
                 "; the gain held at 1 (the held-out blocks chose a level difference alone: "
                 "these data do not pin a gain apart from tau)"
-                if params.get(GAIN_HELD, 0.0) == 1.0
+                if self.held_by_setting(params)
                 else ""
             )
         )
