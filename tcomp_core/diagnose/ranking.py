@@ -357,8 +357,8 @@ def _at_published_scale(evaluator: Evaluator, fitted: Model) -> Model:
 
     The choice the base model has (:func:`~.pipeline._fit_base`), on the estimation blocks:
     the cross-relation fit's τ carry its errors-in-variables bias, which the default path's
-    ml-eiv does not. For the effects that path fits itself
-    (:attr:`~tcomp_core.effects.base.Effect.default_path_fits`: the noise ratio) both of its
+    ml-eiv does not. For the effects that path covers itself
+    (:attr:`~tcomp_core.effects.base.Effect.default_path_covers`: the noise ratio) both of its
     τ are taken; for the others that keep first order's scale
     (:attr:`~tcomp_core.effects.base.Effect.keeps_first_order_scale`: a delay, which the first
     order absorbs into τ2 − τ1) its scale alone, along the fit's loosest direction and within
@@ -385,7 +385,7 @@ def _at_published_scale(evaluator: Evaluator, fitted: Model) -> Model:
     hold = evaluator.chosen_by_free_run(fitted)
     kept: Model | None
     try:
-        if all(effect.default_path_fits for effect in fitted.instances):
+        if all(effect.default_path_covers for effect in fitted.instances):
             start = Model(
                 fitted.effects, {**fitted.params, "tau1": published[0], "tau2": published[1]}
             )

@@ -211,7 +211,9 @@ class Effect:
     #: Whether the default first-order path already accounts for the effect by itself, with
     #: nothing in the sensor chain to undo (the noise ratio: ml-eiv and the smoother measure
     #: the noise). A compensated gas leaves it first order, and it counts as the sensors'
-    #: ordinary physics beside other effects (:attr:`OutputEvidence.ordinary`).
+    #: ordinary physics beside other effects (:attr:`OutputEvidence.ordinary`); a model of
+    #: such effects is judged at both of that path's τ
+    #: (:func:`tcomp_core.diagnose.ranking._at_published_scale`).
     default_path_covers: ClassVar[bool] = False
     #: Other forms of the same physics, as settings carried in the parameters (one dict per
     #: form): the fit's own form is one reading of the literature, and the data cannot always
@@ -269,14 +271,6 @@ class Effect:
     #: scale (a speed swinging ±30 % put the default path's τ 6–8 % high where the velocity fit
     #: was within 4 %, campaign draw 3008) and keeps the fit's own.
     keeps_first_order_scale: ClassVar[bool] = False
-    #: Whether the default path's first order (ml-eiv) fits what this effect does to the
-    #: readings itself (their noise ratio), so that its τ are this model's τ as they stand,
-    #: ratio and scale (:func:`tcomp_core.diagnose.ranking._at_published_scale`). Not so for
-    #: a delay, which the first order absorbs into τ2 − τ1; nor for a line one sensor carries
-    #: alone, which the default path notches before it estimates τ and names apart
-    #: (:attr:`tcomp_core.diagnose.Diagnosis.default_path_findings`); a calibration's gain,
-    #: which that path also fits, is judged apart (see there).
-    default_path_fits: ClassVar[bool] = False
     #: How far a fit with this effect may move either τ from the first-order estimate (a factor,
     #: either way). The first-order τ absorbs what the effect does, so it is biased, but by a
     #: bounded amount for each effect; a fit beyond found no physical explanation and is

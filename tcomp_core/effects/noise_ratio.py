@@ -45,7 +45,6 @@ class NoiseRatio(Effect):
     name = "noise_ratio"
     summary = "the sensors' noise variances differ (phi from the spectra)"
     keeps_first_order_scale = True
-    default_path_fits = True
     default_path_covers = True
 
     def simulation_defaults(self, tau1: float, tau2: float, form: str) -> dict[str, float]:
