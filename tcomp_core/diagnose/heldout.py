@@ -246,8 +246,11 @@ class Evaluator:
 
     def training_error(self, model: Model) -> float:
         """Raw free-run error of the slow sensor on the estimation blocks, % (no scores else)."""
+        return self._free_run_error(model, ~self.data.validation & self.scored_mask(model))
+
+    def _free_run_error(self, model: Model, keep: NDArray[np.bool_]) -> float:
+        """Raw free-run error of the slow sensor on the samples ``keep``, %."""
         measured, predicted = self._free_run(model)
-        keep = ~self.data.validation & self.scored_mask(model)
         return heldout_error_percent(self.lowpass(measured), self.lowpass(predicted), keep)
 
     def chosen_by_free_run(self, model: Model) -> frozenset[str]:
@@ -546,17 +549,9 @@ class Evaluator:
         """
         refit = self.refit_model(model, held)
         keep = self.scored_mask(model) & self.scored_mask(refit)
-        if self._record_error(refit, keep) <= (1.0 + REFIT_TOLERANCE) * self._record_error(
-            model, keep
-        ):
-            return refit
-        return model
-
-    def _record_error(self, model: Model, keep: NDArray[np.bool_]) -> float:
-        """Raw free-run error of the slow sensor on the samples ``keep``, % (inf if not finite)."""
-        measured, predicted = self._free_run(model)
-        error = heldout_error_percent(self.lowpass(measured), self.lowpass(predicted), keep)
-        return error if math.isfinite(error) else math.inf
+        errors = [self._free_run_error(m, keep) for m in (refit, model)]
+        refit_error, chosen_error = (e if math.isfinite(e) else math.inf for e in errors)
+        return refit if refit_error <= (1.0 + REFIT_TOLERANCE) * chosen_error else model
 
     def _refit_rows(
         self, model: Model, rows: NDArray[np.bool_], held: frozenset[str], polished: frozenset[str]
