@@ -7,6 +7,7 @@ With σ2/σ1 = 2.5 at K = 2 %: ml-eiv with φ measured +0.07 %, β-GTLS assuming
 bench/bench_accuracy.py gives the figures at 200 runs per cell.
 """
 
+import dataclasses
 import functools
 import math
 
@@ -67,6 +68,44 @@ def test_grid_start_reaches_the_same_minimum(monkeypatch):
     assert from_grid.params["start_beta_gtls"] == 0.0
     assert rel(from_grid.tau1, from_beta.tau1) < 1e-6
     assert rel(from_grid.tau2, from_beta.tau2) < 1e-6
+
+
+@pytest.mark.parametrize("kind", ["ramp", "multisine"])
+def test_a_start_from_the_decimated_record_reaches_the_grids_minimum(monkeypatch, kind):
+    # At 20 kHz and K = 3 % beta-GTLS on the record itself has no physical pole (checked
+    # below), so the search starts from beta-GTLS on the record decimated; the grid, which
+    # costs 264 evaluations of the criterion, reaches the same minimum.
+    pair = make_pair(kind, dt=5e-5, duration=4.0, noise_percent=3.0, seed=2)
+    with pytest.raises(EstimationError):
+        mleiv_module.beta_gtls(pair.tc1, pair.tc2, pair.dt, 1.0)
+    decimated = ml_eiv(pair.tc1, pair.tc2, pair.dt, 1.0)
+    monkeypatch.setattr(mleiv_module, "_decimated_start", lambda *args: None)
+    from_grid = ml_eiv(pair.tc1, pair.tc2, pair.dt, 1.0)
+    assert decimated.params["start_decimated"] == 1.0
+    assert from_grid.params["start_decimated"] == 0.0
+    for name in ("tau1", "tau2"):
+        assert rel(getattr(decimated, name), getattr(from_grid, name)) < 1e-6
+    assert rel(decimated.params["tau1_se"], from_grid.params["tau1_se"]) < 1e-4
+    assert rel(decimated.tau1, pair.tau1) < 0.05
+
+
+def test_a_decimated_start_whose_search_fails_falls_back_to_the_grid(monkeypatch):
+    pair = make_pair("ramp", dt=5e-5, duration=4.0, noise_percent=3.0, seed=2)
+    reference = ml_eiv(pair.tc1, pair.tc2, pair.dt, 1.0)
+    search = mleiv_module._search
+    calls = []
+
+    def first_fails(problem, initial, warm=False):
+        found = search(problem, initial, warm)
+        calls.append(initial)
+        return found if len(calls) > 1 else dataclasses.replace(found, success=False)
+
+    monkeypatch.setattr(mleiv_module, "_search", first_fails)
+    rescued = ml_eiv(pair.tc1, pair.tc2, pair.dt, 1.0)
+    assert len(calls) >= 2  # the decimated start's search, then the grid's starts
+    assert rescued.params["start_decimated"] == 1.0
+    assert rel(rescued.tau1, reference.tau1) < 1e-6
+    assert rel(rescued.tau2, reference.tau2) < 1e-6
 
 
 # --------------------------------------------------------------------------------------------
@@ -317,6 +356,7 @@ def test_params_are_plain_floats():
         "phi_estimated",
         "start_beta_gtls",
         "start_warm",
+        "start_decimated",
         "evaluations",
     }
     assert set(result.params) == expected
