@@ -1150,6 +1150,26 @@ def test_a_refused_model_falls_back_to_the_longest_shorter_model_that_passes():
 
     assert error(model) < 0.5 * error(full)  # the delay's gas beats the default path's
 
+    # Refused for the delay's own parameter (its check made undetermined), the model has no
+    # stand-in that keeps the delay: the delay alone is not tried, and the refusal stands.
+    unpinned = replace(
+        found,
+        checks=tuple(
+            replace(check, reason="singular: forced by the test")
+            if check.effect == "delay"
+            else check
+            for check in found.checks
+        ),
+    )
+    refused_for_delay = replace(fitted.final, identification=unpinned)
+    for_delay = replace(
+        fitted, final=refused_for_delay, steps=[*fitted.steps[:-1], refused_for_delay]
+    )
+    assert output_model_from_diagnosis(for_delay, **options).unpinned == ("delay",)
+    kept = output_model_with_fallback(record, for_delay, **options)
+    assert kept.refusal and kept.applied() == ()
+    assert kept.unpinned == ("delay",)
+
     # A model of one effect has no shorter model: its refusal stands.
     single = fit_effects(record, ("velocity",), published_taus=taus)
     lone = replace(

@@ -170,6 +170,10 @@ class OutputModel:
         was not checked.
     refusal : str
         Why the fit may not make the gas, every piece then left first order ('' when it may).
+    unpinned : tuple of str
+        The effects with a parameter the data do not pin down that decides the gas, when the
+        fit is refused (:func:`_unpinned_checks`; () otherwise): a shorter model that keeps
+        one of them cannot stand in for it (:func:`output_model_with_fallback`).
     """
 
     effects: tuple[str, ...]
@@ -187,6 +191,7 @@ class OutputModel:
     lines: tuple[ForeignLine, ...] = ()
     first_order_failure: str = ""
     refusal: str = ""
+    unpinned: tuple[str, ...] = ()
 
     @property
     def tau1(self) -> float:
@@ -408,6 +413,11 @@ def output_model_from_diagnosis(
     )
     if loose and not refusal:
         refusal = f"the fit does not determine the time constants ({'; '.join(loose)})"
+    unpinned = (
+        tuple(dict.fromkeys(check.effect for check in _unpinned_checks(final, pieces)))
+        if refusal
+        else ()
+    )
     if refusal:  # not trusted with the gas: every piece first order, on first order's tau
         if first_order_taus is None:
             _check_determined(diagnosis, diagnosis.base, "first-order fit it falls back to")
@@ -433,6 +443,7 @@ def output_model_from_diagnosis(
         lines=tuple(first_order_lines),
         first_order_failure=first_order_failure,
         refusal=refusal,
+        unpinned=unpinned,
     )
 
 
@@ -455,6 +466,12 @@ def output_model_with_fallback(
     do not pin down took a sound one's correction with it: a delay found beside a conduction
     whose supports' lag spanned its whole range was refused, and the gas stayed the default
     path's, 18.2 % off, where the delay alone makes it 4.6 % off (campaign draw 2423).
+    A shorter model that keeps an effect the full one was refused for
+    (:attr:`OutputModel.unpinned`) is not tried: that effect is what the data do not pin
+    down, and leaving out what its fit leaned on does not pin it. A radiation whose ρ1 the
+    data could not fix beside a delay (fresh campaign draw 3920, exhaust pulses at 5 kHz) was
+    refitted alone, passed, and published a gas 63.6 % off where the default path's was
+    18.1 % off.
     """
     from ..diagnose import fit_effects
 
@@ -469,6 +486,8 @@ def output_model_with_fallback(
     if not full.refusal:
         return full
     for step in reversed(diagnosis.steps[1:-1]):
+        if set(step.effects) & set(full.unpinned):
+            continue
         try:
             shorter = judged(
                 fit_effects(
@@ -647,23 +666,11 @@ def _refusal(
     applied = tuple(piece.effect for piece in pieces if piece.handling != "first order")
     if found is None or not applied:
         return ""
-    undetermined = [
-        check for check in found.undetermined(applied) if not _harmless_on_bound(check, found)
-    ]
+    undetermined = _undetermined_checks(found, applied)
     if undetermined:
         listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
         return f"not pinned down by the data ({listed}): first order is what they identify"
-    undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
-    deciding = [  # wide or free parameters that decide the gas (identification's notes)
-        check
-        for check in found.checks
-        if check.effect in undone
-        and check.wide
-        and not (
-            check.gas_move_c < found.change_c
-            and (check.gas_shape_move_c < found.band_c or not check.free)
-        )
-    ]
+    deciding = _deciding_checks(found, pieces)
     if deciding:
         listed = "; ".join(
             f"{check.name}: {check.loose}, across which the gas moves "
@@ -701,6 +708,46 @@ def _refusal(
             f"change the model makes to it ({found.change_c:.3g} degC rms){why}"
         )
     return ""
+
+
+def _undetermined_checks(found: Identification, applied: tuple[str, ...]) -> list[ParameterCheck]:
+    """The parameters of the ``applied`` effects the fit does not determine.
+
+    Singular, or on a bound where that matters (:func:`_harmless_on_bound`).
+    """
+    return [check for check in found.undetermined(applied) if not _harmless_on_bound(check, found)]
+
+
+def _deciding_checks(found: Identification, pieces: tuple[Piece, ...]) -> list[ParameterCheck]:
+    """Wide or free parameters of the undone effects that decide the gas.
+
+    Identification's notes: the gas moves across their interval by the change the model
+    makes or more.
+    """
+    undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
+    return [
+        check
+        for check in found.checks
+        if check.effect in undone
+        and check.wide
+        and not (
+            check.gas_move_c < found.change_c
+            and (check.gas_shape_move_c < found.band_c or not check.free)
+        )
+    ]
+
+
+def _unpinned_checks(final: ModelFit, pieces: tuple[Piece, ...]) -> list[ParameterCheck]:
+    """The parameters :func:`_refusal` refuses a fit for as not pinned down.
+
+    The undetermined ones of the applied effects, else the deciding ones; none when the fit
+    was not checked.
+    """
+    found = final.identification
+    if found is None:
+        return []
+    applied = tuple(piece.effect for piece in pieces if piece.handling != "first order")
+    return _undetermined_checks(found, applied) or _deciding_checks(found, pieces)
 
 
 def parse_compensate_effects(text: str) -> tuple[str, ...] | None:
