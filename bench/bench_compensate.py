@@ -186,6 +186,7 @@ def compare(
         "first_order_fails": bool(failure),
         "final_at_bound": list(diagnosis.final.at_bound),
         "tau": [base.tau1, base.tau2, diagnosis.final.tau1, diagnosis.final.tau2],
+        "round1": _first_round(diagnosis),
     }
     if ungated_too:
         # The output model as it was before the identification rule: the same fit, unchecked.
@@ -243,6 +244,27 @@ def compare(
             )
     row["seconds"] = time.perf_counter() - started
     return row
+
+
+def _first_round(diagnosis) -> dict[str, dict]:
+    """Per suspect of the diagnosis's first round: whether it was significant, and the fall
+    of the raw held-out error (noise included) its refit made on the first-order model.
+
+    What the data show of each effect before any ranking: a true effect whose refit is not
+    significant there cannot be named by the diagnosis, however it ranks.
+    """
+    rounds = diagnosis.rounds
+    current = diagnosis.steps[0]
+    out: dict[str, dict] = {}
+    for suspect in rounds[0] if rounds else []:
+        fit = suspect.fit
+        fall = (
+            1.0 - fit.raw_error_pct / current.raw_error_pct
+            if fit is not None and current.raw_error_pct > 0.0
+            else math.nan
+        )
+        out[suspect.effect] = {"significant": suspect.significant, "raw_fall": fall}
+    return out
 
 
 def truth_named_scores(record: Record, effects: tuple[str, ...]) -> dict:
@@ -623,6 +645,9 @@ def print_goals(rows: list[dict]) -> None:
     single = [r for r in rows if "error" not in r and len(r["truth"]) == 1]
     named = sum(r["truth"][0] == r["verdict"] for r in single)
     share = named / len(single) if single else math.nan
+    # The true effect's first-round refit significant: the data show it, whatever ranks first.
+    shown = [r for r in single if "round1" in r and _shown(r)]
+    named_shown = sum(r["truth"][0] == r["verdict"] for r in shown)
     clean = [r for r in rows if "error" not in r and not r["truth"]]
     alarms = sum(bool(r["found"]) for r in clean)
     recorded = [r for r in rows if "final_at_bound" in r]  # rows of older runs lack it
@@ -635,6 +660,11 @@ def print_goals(rows: list[dict]) -> None:
             median >= 3.0,
         ),
         ("single effects named right", f"{named}/{len(single)}", share >= 0.95),
+        (
+            "  where the true effect's refit is significant",
+            f"{named_shown}/{len(shown)}",
+            None if not shown else named_shown / len(shown) >= 0.95,
+        ),
         ("false alarms on clean draws", f"{alarms}/{len(clean)}", alarms == 0),
         (
             "verdicts with a parameter on a bound",
@@ -646,6 +676,29 @@ def print_goals(rows: list[dict]) -> None:
     for name, figure, met in goals:
         verdict = "not recorded" if met is None else "met" if met else "NOT met"
         print(f"  {name:<46}{figure:>16}  {verdict}")
+    unseen = [r for r in single if "round1" in r and not _shown(r)]
+    if unseen:
+        print(
+            "  single effects whose refit on the first order is not significant (the data do "
+            "not show them; raw held-out fall): "
+            + ", ".join(
+                f"{r['index']} {r['truth'][0]} "
+                f"{100.0 * r['round1'].get(r['truth'][0], {}).get('raw_fall', math.nan):.3g} %"
+                for r in unseen
+            )
+        )
+
+
+def _shown(row: dict) -> bool:
+    """Whether the first round judged the draw's (single) true effect significant.
+
+    The default path's own findings (a line one channel carries, a noise ratio) count as
+    shown when the diagnosis found them.
+    """
+    effect = row["truth"][0]
+    if effect in row.get("found", ()):
+        return True
+    return bool(row.get("round1", {}).get(effect, {}).get("significant", False))
 
 
 def _ratio(row: dict, key: str) -> float:
