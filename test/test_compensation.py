@@ -1150,25 +1150,25 @@ def test_a_refused_model_falls_back_to_the_longest_shorter_model_that_passes():
 
     assert error(model) < 0.5 * error(full)  # the delay's gas beats the default path's
 
-    # Refused for the delay's own parameter (its check made undetermined), the model has no
-    # stand-in that keeps the delay: the delay alone is not tried, and the refusal stands.
-    unpinned = replace(
-        found,
-        checks=tuple(
-            replace(check, reason="singular: forced by the test")
-            if check.effect == "delay"
-            else check
-            for check in found.checks
-        ),
-    )
-    refused_for_delay = replace(fitted.final, identification=unpinned)
-    for_delay = replace(
-        fitted, final=refused_for_delay, steps=[*fitted.steps[:-1], refused_for_delay]
-    )
-    assert output_model_from_diagnosis(for_delay, **options).unpinned == ("delay",)
-    kept = output_model_with_fallback(record, for_delay, **options)
-    assert kept.refusal and kept.applied() == ()
-    assert kept.unpinned == ("delay",)
+    # A shorter model whose gas moves beyond the two fits' bands (its reconstructions given a
+    # swing of ten times the full fit's forced band) is another explanation, not the full one's
+    # sound part: it does not stand in, and the refusal stands.
+    import tcomp_core.diagnose as diagnose_module
+
+    band_c = refused_final.identification.band_c
+    swing = 10.0 * band_c * math.sqrt(2.0) * np.sin(2.0 * np.pi * 2.0 * fitted.time)
+
+    def swung(*args, **kwargs):
+        shorter = fit_effects(*args, **kwargs)
+        final = replace(
+            shorter.final, gas1=shorter.final.gas1 + swing, gas2=shorter.final.gas2 + swing
+        )
+        return replace(shorter, final=final)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(diagnose_module, "fit_effects", swung)
+        moved = output_model_with_fallback(record, forced, **options)
+    assert moved.refusal and moved.applied() == ()
 
     # A model of one effect has no shorter model: its refusal stands.
     single = fit_effects(record, ("velocity",), published_taus=taus)

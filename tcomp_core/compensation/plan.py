@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import signal
 
 from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
@@ -170,10 +171,6 @@ class OutputModel:
         was not checked.
     refusal : str
         Why the fit may not make the gas, every piece then left first order ('' when it may).
-    unpinned : tuple of str
-        The effects with a parameter the data do not pin down that decides the gas, when the
-        fit is refused (:func:`_unpinned_checks`; () otherwise): a shorter model that keeps
-        one of them cannot stand in for it (:func:`output_model_with_fallback`).
     """
 
     effects: tuple[str, ...]
@@ -191,7 +188,6 @@ class OutputModel:
     lines: tuple[ForeignLine, ...] = ()
     first_order_failure: str = ""
     refusal: str = ""
-    unpinned: tuple[str, ...] = ()
 
     @property
     def tau1(self) -> float:
@@ -413,11 +409,6 @@ def output_model_from_diagnosis(
     )
     if loose and not refusal:
         refusal = f"the fit does not determine the time constants ({'; '.join(loose)})"
-    unpinned = (
-        tuple(dict.fromkeys(check.effect for check in _unpinned_checks(final, pieces)))
-        if refusal
-        else ()
-    )
     if refusal:  # not trusted with the gas: every piece first order, on first order's tau
         if first_order_taus is None:
             _check_determined(diagnosis, diagnosis.base, "first-order fit it falls back to")
@@ -443,7 +434,6 @@ def output_model_from_diagnosis(
         lines=tuple(first_order_lines),
         first_order_failure=first_order_failure,
         refusal=refusal,
-        unpinned=unpinned,
     )
 
 
@@ -466,12 +456,8 @@ def output_model_with_fallback(
     do not pin down took a sound one's correction with it: a delay found beside a conduction
     whose supports' lag spanned its whole range was refused, and the gas stayed the default
     path's, 18.2 % off, where the delay alone makes it 4.6 % off (campaign draw 2423).
-    A shorter model that keeps an effect the full one was refused for
-    (:attr:`OutputModel.unpinned`) is not tried: that effect is what the data do not pin
-    down, and leaving out what its fit leaned on does not pin it. A radiation whose ρ1 the
-    data could not fix beside a delay (fresh campaign draw 3920, exhaust pulses at 5 kHz) was
-    refitted alone, passed, and published a gas 63.6 % off where the default path's was
-    18.1 % off.
+    A shorter model stands in only when its gas agrees with the full fit's, within the two
+    fits' 95 % bands (:func:`_stands_in_for`): then what it leaves out did not shape the gas.
     """
     from ..diagnose import fit_effects
 
@@ -486,20 +472,19 @@ def output_model_with_fallback(
     if not full.refusal:
         return full
     for step in reversed(diagnosis.steps[1:-1]):
-        if set(step.effects) & set(full.unpinned):
-            continue
         try:
-            shorter = judged(
-                fit_effects(
-                    record,
-                    step.effects,
-                    published_taus=first_order_taus,
-                    published_lines=first_order_lines,
-                )
+            shorter_fit = fit_effects(
+                record,
+                step.effects,
+                published_taus=first_order_taus,
+                published_lines=first_order_lines,
             )
+            shorter = judged(shorter_fit)
         except (EstimationError, ValueError):
             continue
         if shorter.refusal or not shorter.applied():
+            continue
+        if not _stands_in_for(shorter_fit.final, diagnosis):
             continue
         dropped = [effect for effect in full.effects if effect not in shorter.effects]
         reason = (
@@ -511,6 +496,44 @@ def output_model_with_fallback(
             shorter, effects=(*shorter.effects, *dropped), pieces=(*shorter.pieces, *left)
         )
     return full
+
+
+def _stands_in_for(shorter: ModelFit, diagnosis: Diagnosis) -> bool:
+    """Whether a shorter model's gas agrees with the full fit's within their 95 % bands.
+
+    Both fits' gas (the mean of the two sensors' reconstructions at the diagnosis's working
+    rate, low-passed at its comparison band, their means removed: the level has its own
+    rules) are compared over the record less three slow time constants at each end; they
+    agree when the rms of the difference is within the two bands in quadrature
+    (:attr:`~tcomp_core.diagnose.identification.Identification.band_c`). A shorter model
+    whose gas moves beyond them is another explanation of the record, not the sound part of
+    the full one: a radiation refitted without the delay the staircase had added beside it
+    (fresh campaign draw 3920, exhaust pulses at 5 kHz, the full model refused for its ρ1)
+    moved the gas 89 degC rms against bands of +-5.3 and +-14.4, and published 63.6 % off where
+    the default path's gas is 18.1 % off; conduction without a calibration (3926) moved it
+    5.4 degC against +-4.3 and +-6.1 and cut the default path's 370 % to 20 %, and draw 2423's
+    delay without the conduction 108 degC against +-138 and +-1.8. A band that could not be
+    computed does not refuse.
+    """
+    full = diagnosis.final
+    bands = [
+        fit.identification.band_c if fit.identification is not None else math.nan
+        for fit in (full, shorter)
+    ]
+    if not all(math.isfinite(band) for band in bands):
+        return True
+    dt = diagnosis.dt
+    count = min(full.gas1.size, shorter.gas1.size)
+    skip = min(count // 10, math.ceil(3.0 * max(full.tau1, full.tau2) / dt))
+    sos = signal.butter(4, min(diagnosis.eval_cutoff_hz, 0.45 / dt), fs=1.0 / dt, output="sos")
+    difference = np.zeros(count)
+    for fit, sign in ((full, 1.0), (shorter, -1.0)):
+        difference += sign * 0.5 * (fit.gas1[:count] + fit.gas2[:count])
+    kept = difference[skip : count - skip]
+    if kept.size < 16 or not np.all(np.isfinite(kept)):
+        return True
+    moved = signal.sosfiltfilt(sos, kept - kept.mean())
+    return float(np.sqrt(np.mean(moved**2))) <= math.hypot(*bands)
 
 
 def _lines_the_default_takes_off(
@@ -666,11 +689,23 @@ def _refusal(
     applied = tuple(piece.effect for piece in pieces if piece.handling != "first order")
     if found is None or not applied:
         return ""
-    undetermined = _undetermined_checks(found, applied)
+    undetermined = [
+        check for check in found.undetermined(applied) if not _harmless_on_bound(check, found)
+    ]
     if undetermined:
         listed = "; ".join(f"{check.name} {check.reason}" for check in undetermined)
         return f"not pinned down by the data ({listed}): first order is what they identify"
-    deciding = _deciding_checks(found, pieces)
+    undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
+    deciding = [  # wide or free parameters that decide the gas (identification's notes)
+        check
+        for check in found.checks
+        if check.effect in undone
+        and check.wide
+        and not (
+            check.gas_move_c < found.change_c
+            and (check.gas_shape_move_c < found.band_c or not check.free)
+        )
+    ]
     if deciding:
         listed = "; ".join(
             f"{check.name}: {check.loose}, across which the gas moves "
@@ -708,46 +743,6 @@ def _refusal(
             f"change the model makes to it ({found.change_c:.3g} degC rms){why}"
         )
     return ""
-
-
-def _undetermined_checks(found: Identification, applied: tuple[str, ...]) -> list[ParameterCheck]:
-    """The parameters of the ``applied`` effects the fit does not determine.
-
-    Singular, or on a bound where that matters (:func:`_harmless_on_bound`).
-    """
-    return [check for check in found.undetermined(applied) if not _harmless_on_bound(check, found)]
-
-
-def _deciding_checks(found: Identification, pieces: tuple[Piece, ...]) -> list[ParameterCheck]:
-    """Wide or free parameters of the undone effects that decide the gas.
-
-    Identification's notes: the gas moves across their interval by the change the model
-    makes or more.
-    """
-    undone = tuple(piece.effect for piece in pieces if piece.handling in _UNDONE)
-    return [
-        check
-        for check in found.checks
-        if check.effect in undone
-        and check.wide
-        and not (
-            check.gas_move_c < found.change_c
-            and (check.gas_shape_move_c < found.band_c or not check.free)
-        )
-    ]
-
-
-def _unpinned_checks(final: ModelFit, pieces: tuple[Piece, ...]) -> list[ParameterCheck]:
-    """The parameters :func:`_refusal` refuses a fit for as not pinned down.
-
-    The undetermined ones of the applied effects, else the deciding ones; none when the fit
-    was not checked.
-    """
-    found = final.identification
-    if found is None:
-        return []
-    applied = tuple(piece.effect for piece in pieces if piece.handling != "first order")
-    return _undetermined_checks(found, applied) or _deciding_checks(found, pieces)
 
 
 def parse_compensate_effects(text: str) -> tuple[str, ...] | None:
