@@ -742,7 +742,7 @@ def ml_eiv(
     if origin == "decimated" and not (fit.success and _inside(fit.x, low, high)):
         # The decimated record's start is an approximation: where its search fails, the grid
         # decides as it did before that start existed.
-        fit = _best([fit, *(_search(problem, initial) for initial in _grid_starts(problem))])
+        fit = _best(_search(problem, initial) for initial in _grid_starts(problem))
     if not fit.success:
         raise EstimationError(f"ml-eiv: the search did not converge ({fit.message})")
     if not _inside(fit.x, low, high):
