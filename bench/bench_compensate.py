@@ -247,11 +247,13 @@ def compare(
 
 
 def _first_round(diagnosis) -> dict[str, dict]:
-    """Per suspect of the diagnosis's first round: whether it was significant, and the fall
-    of the raw held-out error (noise included) its refit made on the first-order model.
+    """Per suspect of the diagnosis's first round: whether it was significant, the fall of
+    the raw held-out error (noise included) its refit made on the first-order model, and the
+    rule that refused it ('' when significant).
 
-    What the data show of each effect before any ranking: a true effect whose refit is not
-    significant there cannot be named by the diagnosis, however it ranks.
+    A true effect whose own refit is refused there cannot be named by the diagnosis, however
+    it ranks: too small against the noise, or a fit the rules refuse (a parameter on its
+    physical bound).
     """
     rounds = diagnosis.rounds
     current = diagnosis.steps[0]
@@ -263,7 +265,11 @@ def _first_round(diagnosis) -> dict[str, dict]:
             if fit is not None and current.raw_error_pct > 0.0
             else math.nan
         )
-        out[suspect.effect] = {"significant": suspect.significant, "raw_fall": fall}
+        out[suspect.effect] = {
+            "significant": suspect.significant,
+            "raw_fall": fall,
+            "refusal": suspect.refusal,
+        }
     return out
 
 
@@ -679,11 +685,12 @@ def print_goals(rows: list[dict]) -> None:
     unseen = [r for r in single if "round1" in r and not _shown(r)]
     if unseen:
         print(
-            "  single effects whose refit on the first order is not significant (the data do "
-            "not show them; raw held-out fall): "
-            + ", ".join(
-                f"{r['index']} {r['truth'][0]} "
-                f"{100.0 * r['round1'].get(r['truth'][0], {}).get('raw_fall', math.nan):.3g} %"
+            "  single effects whose own refit on the first order was refused in round 1 "
+            "(raw held-out fall; the rule that refused it):"
+            + "".join(
+                f"\n    {r['index']} {r['truth'][0]} "
+                f"{100.0 * r['round1'].get(r['truth'][0], {}).get('raw_fall', math.nan):.3g} %; "
+                f"{r['round1'].get(r['truth'][0], {}).get('refusal', 'not fitted')[:90]}"
                 for r in unseen
             )
         )
