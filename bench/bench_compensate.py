@@ -689,8 +689,8 @@ def print_goals(rows: list[dict]) -> None:
             "(raw held-out fall; the rule that refused it):"
             + "".join(
                 f"\n    {r['index']} {r['truth'][0]} "
-                f"{100.0 * r['round1'].get(r['truth'][0], {}).get('raw_fall', math.nan):.3g} %; "
-                f"{r['round1'].get(r['truth'][0], {}).get('refusal', 'not fitted')[:90]}"
+                f"{100.0 * _true_suspect(r).get('raw_fall', math.nan):.3g} %; "
+                f"{_true_suspect(r).get('refusal', 'rule not recorded')[:90]}"
                 for r in unseen
             )
         )
@@ -702,10 +702,14 @@ def _shown(row: dict) -> bool:
     The default path's own findings (a line one channel carries, a noise ratio) count as
     shown when the diagnosis found them.
     """
-    effect = row["truth"][0]
-    if effect in row.get("found", ()):
+    if row["truth"][0] in row.get("found", ()):
         return True
-    return bool(row.get("round1", {}).get(effect, {}).get("significant", False))
+    return bool(_true_suspect(row).get("significant", False))
+
+
+def _true_suspect(row: dict) -> dict:
+    """The first round's entry (``round1``) of a single-effect draw's true effect ({} if none)."""
+    return row.get("round1", {}).get(row["truth"][0], {})
 
 
 def _ratio(row: dict, key: str) -> float:

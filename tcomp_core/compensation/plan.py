@@ -46,7 +46,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 from ..choices import parse_effect_list
 from ..effects import EFFECTS, FitContext, Model
@@ -55,7 +54,9 @@ from ..effects.chain import SensorChain
 from ..effects.model import swapped_sensors
 from ..errors import EstimationError
 from ..estimators.default import default_estimate
+from ..filters import lowpass_sos
 from ..lines import NOTCH_Q
+from ..sections import zero_phase
 from ..tolerance import (
     CLASS2_GAIN,
     CLASS2_MARGIN,
@@ -85,6 +86,11 @@ __all__ = [
     "swapped_sensors",
 ]
 
+#: How a shorter model's gas is compared with the full fit's (:func:`_stands_in_for`): the
+#: order of the zero-phase low-pass at the comparison band, and the slow time constants left
+#: out at each end (the reconstructions' start-up).
+STANDS_IN_FILTER_ORDER = 4
+STANDS_IN_SKIP_TAUS = 3.0
 #: ``OutputModel.name`` of the plain first-order model.
 FIRST_ORDER = "first-order"
 #: A first-order τ whose 95 % interval spans more than this factor is not determined: pure
@@ -524,15 +530,15 @@ def _stands_in_for(shorter: ModelFit, diagnosis: Diagnosis) -> bool:
         return True
     dt = diagnosis.dt
     count = min(full.gas1.size, shorter.gas1.size)
-    skip = min(count // 10, math.ceil(3.0 * max(full.tau1, full.tau2) / dt))
-    sos = signal.butter(4, min(diagnosis.eval_cutoff_hz, 0.45 / dt), fs=1.0 / dt, output="sos")
+    skip = min(count // 10, math.ceil(STANDS_IN_SKIP_TAUS * max(full.tau1, full.tau2) / dt))
+    sos = lowpass_sos(min(diagnosis.eval_cutoff_hz, 0.45 / dt), dt, STANDS_IN_FILTER_ORDER)
     difference = np.zeros(count)
     for fit, sign in ((full, 1.0), (shorter, -1.0)):
         difference += sign * 0.5 * (fit.gas1[:count] + fit.gas2[:count])
     kept = difference[skip : count - skip]
     if kept.size < 16 or not np.all(np.isfinite(kept)):
         return True
-    moved = signal.sosfiltfilt(sos, kept - kept.mean())
+    moved = zero_phase(sos, kept - kept.mean())
     return float(np.sqrt(np.mean(moved**2))) <= math.hypot(*bands)
 
 

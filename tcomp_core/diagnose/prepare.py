@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 from ..errors import DataError, NoExcitationError, TcompError
 from ..estimators import estimate
+from ..filters import decimate
 from ..fusion.adequacy import phase_beyond_lags
 from ..io import Record
 from ..noise import NoiseEstimate, estimate_noise, model_noise, signal_band_edge
@@ -133,16 +133,6 @@ def block_length_s(duration_s: float, dt: float) -> float:
     return min(length, duration_s / 4.0)
 
 
-def _decimate(values: NDArray[np.float64], factor: int) -> NDArray[np.float64]:
-    """Anti-aliased, zero-phase decimation aligned with ``values[::factor]``.
-
-    Polyphase FIR (:func:`scipy.signal.resample_poly`) with the ends extended along a fitted
-    line: padding with zeros would drag a 500 °C record towards 0 at both ends, and the edge
-    transients would dominate the difference equation.
-    """
-    return signal.resample_poly(values, 1, factor, padtype="line")
-
-
 def _decimation_factor(dt: float, band_edge_hz: float) -> int:
     rate = max(MIN_WORKING_RATE_HZ, RATE_PER_BANDWIDTH * band_edge_hz)
     return max(1, math.floor(1.0 / (dt * rate)))
@@ -185,7 +175,7 @@ def prepare(record: Record) -> PreparedData:
     factor = _decimation_factor(record.dt, max(edges))
     arrays = [record.tc1, record.tc2] + ([record.ref] if record.ref is not None else [])
     if factor > 1:
-        arrays = [_decimate(values, factor) for values in arrays]
+        arrays = [decimate(values, factor) for values in arrays]
     dt = record.dt * factor
     n = arrays[0].size
     if n < MIN_WORKING_SAMPLES:

@@ -56,7 +56,7 @@ must beat it clearly), is added to the model when significant, and is not the ve
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -253,7 +253,7 @@ def _degenerate(candidate: ModelFit, current: ModelFit) -> bool:
 
 def degenerate_parameters(candidate: ModelFit, current: ModelFit) -> list[str]:
     """The parameters that make the candidate's fit degenerate (:func:`_degenerate`)."""
-    new = set(candidate.params) - set(current.params)
+    added = set(added_on_bound(candidate, current.params))
 
     def driven(name: str) -> bool:
         if name not in ("tau1", "tau2") or name in current.at_bound:
@@ -261,7 +261,13 @@ def degenerate_parameters(candidate: ModelFit, current: ModelFit) -> list[str]:
         ratio = current.params[name] / candidate.params[name]
         return max(ratio, 1.0 / ratio) > DRIVEN_FACTOR
 
-    return [name for name in candidate.at_bound if name in new or driven(name)]
+    return [name for name in candidate.at_bound if name in added or driven(name)]
+
+
+def added_on_bound(fit: ModelFit, parent_params: Mapping[str, float]) -> list[str]:
+    """The parameters ``fit`` adds to a model of ``parent_params`` that it left on a bound."""
+    new = set(fit.params) - set(parent_params)
+    return [name for name in fit.at_bound if name in new]
 
 
 def rank(suspects: Sequence[Suspect]) -> list[Suspect]:
@@ -355,16 +361,16 @@ def fit_with_effect(evaluator: Evaluator, model: Model, name: str) -> tuple[Mode
 def _choice_key(fit: ModelFit, parent: Model) -> tuple[bool, float]:
     """Order of an effect's setting choices: off the bounds first, then the held-out error.
 
-    A fit that leaves none of the parameters it adds on a bound of their physical range comes
-    first. A choice whose fit found no physical explanation does not beat one that did: it would be
-    refused as degenerate (:func:`degenerate_parameters`) and take the effect down with it. On
+    A fit that leaves none of the parameters it adds on a bound of their physical range
+    (:func:`added_on_bound`) comes first. A choice whose fit found no physical explanation does
+    not beat one that did: it would be refused as degenerate (:func:`degenerate_parameters`)
+    and take the effect down with it. On
     a rotating disk whose tc2 read 4.3 % low in gain and 8.5 °C low (fresh campaign draw 3967,
     the gain trading with τ2 along the disk's tone) the free gain ran to its bound of 0.8 and,
     at 0.395 % held-out error, beat the gain held at 1; refused, it left the record
     `unexplained` at 340 %.
     """
-    added = set(fit.params) - set(parent.params)
-    return (bool(added & set(fit.at_bound)), fit.error_pct)
+    return (bool(added_on_bound(fit, parent.params)), fit.error_pct)
 
 
 def _at_published_scale(evaluator: Evaluator, fitted: Model) -> Model:

@@ -62,9 +62,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
-from scipy.signal import resample_poly
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
+from ..filters import decimate
 from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
@@ -450,7 +450,7 @@ def _decimated_start(
     for factor in _START_DECIMATION:
         if tc1.size // factor < _START_MIN_SAMPLES:
             return None
-        slow1, slow2 = (resample_poly(v, 1, factor, padtype="line") for v in (tc1, tc2))
+        slow1, slow2 = decimate(tc1, factor), decimate(tc2, factor)
         try:
             found = beta_gtls(slow1, slow2, factor * dt, phi)
         except (TcompError, ValueError):
