@@ -19,7 +19,10 @@ samples. The slope's standard error is printed too: a slope within two of them i
     processes are sampled too (their sum is printed, they are separate processes), and so is
     the publisher: a bare rclpy publisher of both inputs, keeping no per-batch records here,
     the baseline for the node's own publishing (the node publishes the gas at the pair rate).
-    CPU % of the node and the machine is from bench_realtime.py's sampler.
+    CPU % of the node and the machine is from bench_realtime.py's sampler. ``--node-env
+    NAME=VALUE`` sets an environment variable of the node's process alone (its worker
+    processes inherit it), e.g. ``PYTHONMALLOC=malloc`` to take Python's own allocator out.
+    A run cut short (Ctrl-C, SIGTERM) prints the slopes of the samples it has.
 
 ``--mode engine`` – the node's engine alone, in this process
     :class:`tcomp_core.online.Engine` (the pair matcher, :class:`~tcomp_core.online.
@@ -53,6 +56,7 @@ Run::
 
     cd /work/main && .venv/bin/python bench/bench_soak.py                  # node, 120 s
     .venv/bin/python bench/bench_soak.py --duration 3600                   # node, an hour
+    .venv/bin/python bench/bench_soak.py --duration 3600 --node-env PYTHONMALLOC=malloc
     .venv/bin/python bench/bench_soak.py --mode engine                     # engine, 120 s
     .venv/bin/python bench/bench_soak.py --mode engine --unpaced --duration 240
     .venv/bin/python bench/bench_soak.py --mode engine --unpaced --duration 240 --glibc-dynamic
@@ -314,6 +318,8 @@ def run_node(args: argparse.Namespace) -> dict:
         tracer += ["--out", str(trace), "--start", str(args.warmup)]
         tracer += ["--top", str(args.tracemalloc), "--frames", str(args.frames)]
         command = tracer + command[command.index("--ros-args") :]
+    if args.node_env:  # the node's process alone (env execs it: the same pid)
+        command = ["env", *args.node_env, *command]
     try:
         node = children.start("compensator", command)
         sampler.watch("compensator", node.pid)
@@ -341,20 +347,30 @@ def run_node(args: argparse.Namespace) -> dict:
         start = time.monotonic()
         deadline = start + args.duration + 90.0
         next_sample = 0.0
-        while pub.poll() is None:
-            wall = time.monotonic() - start
-            if wall >= next_sample:
-                series["node"].add(wall, rss_bytes(node.pid))
-                series["counter"].add(wall, rss_bytes(counter.pid))
-                workers = [rss_bytes(pid) for pid in _descendants(node.pid)]
-                series["workers"].add(wall, sum(w for w in workers if w is not None))
-                series["publisher"].add(wall, rss_bytes(pub.pid))
-                sampler.sample()
-                next_sample += args.interval
-            children.check_alive("compensator", "counter")
-            if time.monotonic() > deadline:
-                raise RuntimeError(f"the publisher did not finish:\n{children.tail('publisher')}")
-            time.sleep(0.05)
+        try:
+            while pub.poll() is None:
+                wall = time.monotonic() - start
+                if wall >= next_sample:
+                    series["node"].add(wall, rss_bytes(node.pid))
+                    series["counter"].add(wall, rss_bytes(counter.pid))
+                    workers = [rss_bytes(pid) for pid in _descendants(node.pid)]
+                    series["workers"].add(wall, sum(w for w in workers if w is not None))
+                    series["publisher"].add(wall, rss_bytes(pub.pid))
+                    sampler.sample()
+                    next_sample += args.interval
+                children.check_alive("compensator", "counter")
+                if time.monotonic() > deadline:
+                    raise RuntimeError(
+                        f"the publisher did not finish:\n{children.tail('publisher')}"
+                    )
+                time.sleep(0.05)
+        except KeyboardInterrupt:  # a soak cut short still has its slopes so far
+            print(f"interrupted after {time.monotonic() - start:.0f} s", file=sys.stderr)
+            return {
+                "mode": "node",
+                "interrupted": True,
+                "growth": [item.growth(args.warmup) for item in series.values()],
+            }
         sampler.sample()
         if pub.returncode != 0 or not out.exists():
             raise RuntimeError(f"publisher failed:\n{children.tail('publisher')}")
@@ -438,7 +454,9 @@ def print_report(args: argparse.Namespace, result: dict) -> None:
         base = result["growth"][1]
         ratio = first["slope"] / base["slope"] if base["slope"] else math.nan
         print(f"node against the bare subscriber, same run: {ratio:.2f} x its growth")
-        if result.get("traced_top"):
+        if result.get("interrupted"):
+            print("interrupted: the slopes of the samples so far; no CPU or message counts")
+        elif result.get("traced_top"):
             print(
                 f"node: the {len(result['traced_top'])} biggest traced differences since "
                 "twice the warm-up"
@@ -446,11 +464,12 @@ def print_report(args: argparse.Namespace, result: dict) -> None:
             for stat in result["traced_top"]:
                 print(f"  {stat['size_diff'] / 1024:+9.1f} KiB {stat['count_diff']:+7d} blocks")
                 print("\n".join(f"      {line}" for line in stat["traceback"][-4:]))
-        print(
-            f"pairs sent {result['pairs_sent']} at {result['achieved_pairs_per_s']:.0f}/s; "
-            f"counter received {result['counter_received']} messages; node CPU "
-            f"{result['cpu_node_pct']:.0f} %, machine {result['machine_pct']:.0f} %"
-        )
+        if not result.get("interrupted"):
+            print(
+                f"pairs sent {result['pairs_sent']} at {result['achieved_pairs_per_s']:.0f}/s; "
+                f"counter received {result['counter_received']} messages; node CPU "
+                f"{result['cpu_node_pct']:.0f} %, machine {result['machine_pct']:.0f} %"
+            )
     else:
         speed = result["stream_per_wall"]
         print(
@@ -484,6 +503,14 @@ def main(argv: list[str] | None = None) -> int:
         metavar="NAME:=VALUE",
         help="a node parameter beside bench_realtime.py's (repeatable)",
     )
+    parser.add_argument(
+        "--node-env",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="node: an environment variable of the node's process alone, e.g. "
+        "PYTHONMALLOC=malloc (repeatable)",
+    )
     parser.add_argument("--inline", action="store_true", help="engine: inline runners")
     parser.add_argument("--unpaced", action="store_true", help="engine: as fast as possible")
     parser.add_argument(
@@ -508,7 +535,8 @@ def main(argv: list[str] | None = None) -> int:
     rt.interrupt_on_sigterm()
     print(
         f"bench_soak: mode {args.mode}, {args.duration:g} s, warm-up {args.warmup:g} s, "
-        f"{args.rate:g} Hz per sensor, parameters {parameters(args)}",
+        f"{args.rate:g} Hz per sensor, parameters {parameters(args)}"
+        + (f", node environment {' '.join(args.node_env)}" if args.node_env else ""),
         flush=True,
     )
     try:
