@@ -27,7 +27,7 @@ import numpy as np
 import rclpy
 
 from tcomp_ros.compensator import CompensatorNode
-from tcomp_ros.spin import spin_until_shutdown
+from tcomp_ros.spin import LONG_RUN_SLICE_S, spin_until_shutdown
 
 
 class TimedCompensatorNode(CompensatorNode):
@@ -127,7 +127,7 @@ def main() -> int:
     try:
         if profiler is not None:
             profiler.enable()
-        spin_until_shutdown(node)
+        spin_until_shutdown(node, timeout_sec=LONG_RUN_SLICE_S)  # as the node's main()
     finally:
         if profiler is not None:
             profiler.disable()

@@ -5,6 +5,11 @@ where the SingleThreadedExecutor saturates near 2–3 k/s on a 2-core machine. I
 ``spin()`` in a background thread was seen to busy-loop and ignore SIGTERM, while a
 ``spin_once`` loop on the main thread behaves, so that is what :func:`spin_until_shutdown` does.
 SIGINT and SIGTERM shut the context down through rclpy's own signal handlers, which ends the loop.
+
+Each slice costs native memory that is never given back: a bare node with the compensator's
+timers grew 2.34 MiB an hour spun in 50 ms slices, 0.23 with ``spin_once`` (15 minutes each,
+side by side), whatever it published; the compensator had grown 2.7–2.9 MiB an hour. A process
+that runs for weeks spins in slices of :data:`LONG_RUN_SLICE_S`.
 """
 
 from __future__ import annotations
@@ -18,7 +23,11 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.task import Future
 
-__all__ = ["make_executor", "spin_until_shutdown"]
+__all__ = ["LONG_RUN_SLICE_S", "make_executor", "spin_until_shutdown"]
+
+#: Slice of a process that runs for weeks (the compensator), s: twenty times fewer slices than
+#: the default's, so twenty times less of their memory; ``done()`` is checked between slices.
+LONG_RUN_SLICE_S = 1.0
 
 
 def make_executor(context: Context | None = None) -> Executor:
@@ -33,7 +42,11 @@ def make_executor(context: Context | None = None) -> Executor:
 def spin_until_shutdown(
     node: Node, done: Callable[[], bool] = lambda: False, timeout_sec: float = 0.05
 ) -> None:
-    """Spin ``node`` on the main thread until shutdown (Ctrl-C, SIGTERM) or ``done()``."""
+    """Spin ``node`` on the main thread until shutdown (Ctrl-C, SIGTERM) or ``done()``.
+
+    ``timeout_sec`` is the slice of the EventsExecutor (module notes): ``done()`` is checked
+    between slices.
+    """
     context = node.context
     executor = make_executor(context)
     executor.add_node(node)
