@@ -5,16 +5,16 @@ Each variant is a process of its own holding a bare node with the compensator's 
 spun by :func:`tcomp_ros.spin.make_executor`'s executor (the EventsExecutor) in one of these
 ways:
 
-``slices:S``      ``spin_until_future_complete`` on a future never done, S seconds a slice
-                  (:func:`tcomp_ros.spin.spin_until_shutdown`'s loop)
+``slices:S``      :func:`tcomp_ros.spin.spin_until_shutdown` itself, S seconds a slice
+                  (``spin_until_future_complete`` on a future never done)
 ``slices-pub:S``  the same, also publishing 25 Temperature messages per 5 ms tick (5 kHz)
 ``once``          ``spin_once(timeout_sec=0.05)`` (the bench's bare subscriber)
 
 Every variant runs at once on a private domain, samples its own resident memory every
 ``--interval`` s, and the bench prints each one's growth as the least-squares slope after
-``--warmup`` s (MiB per hour) with its standard error, the first and last RSS and the timer
-ticks (equal ticks: the variants ran alike). A variant that grows by more than another does so
-in the way it spins: nothing else differs.
+``--warmup`` s (MiB per hour, ``bench_soak.py``'s ``Series``) with its standard error, the
+first and last RSS and the timer ticks (equal ticks: the variants ran alike). A variant that
+grows by more than another does so in the way it spins: nothing else differs.
 
 Run::
 
@@ -26,17 +26,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import os
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+import bench_realtime as rt
+from bench_soak import Series, rss_bytes
 
-HERE = Path(__file__).resolve().parent
 VARIANTS = ("slices:0.05", "slices:1.0", "slices-pub:0.05", "once")
 
 
@@ -44,10 +42,9 @@ def child(variant: str, duration: float, interval: float, out: Path) -> None:
     """One variant: spin the bare node for ``duration`` s, write its RSS samples to ``out``."""
     import rclpy
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-    from rclpy.task import Future
     from sensor_msgs.msg import Temperature
 
-    from tcomp_ros.spin import make_executor
+    from tcomp_ros.spin import make_executor, spin_until_shutdown
 
     kind, _, slice_text = variant.partition(":")
     rclpy.init()
@@ -73,44 +70,27 @@ def child(variant: str, duration: float, interval: float, out: Path) -> None:
     node.create_timer(0.005, drain)
     node.create_timer(0.5, lambda: None)
     node.create_timer(1.0, report)
-    executor = make_executor(node.context)
-    executor.add_node(node)
-    never = Future()
-    slice_s = float(slice_text or 0.05)
-    samples = []
+    samples: list[tuple[float, int | None]] = []
     start = time.monotonic()
-    next_sample = 0.0
-    while (now := time.monotonic() - start) < duration:
-        if kind == "once":
+
+    def sampled_until_done() -> bool:
+        """Sample RSS every ``interval`` s; True once ``duration`` s have passed."""
+        now = time.monotonic() - start
+        if not samples or now >= samples[-1][0] + interval:
+            samples.append((now, rss_bytes()))
+        return now >= duration
+
+    if kind == "once":
+        executor = make_executor(node.context)
+        executor.add_node(node)
+        while not sampled_until_done():
             executor.spin_once(timeout_sec=0.05)
-        else:
-            executor.spin_until_future_complete(never, timeout_sec=slice_s)
-        if now >= next_sample:
-            samples.append((now, _rss_kib()))
-            next_sample += interval
-    executor.shutdown()
+        executor.shutdown()
+        rclpy.try_shutdown()
+    else:  # the product's loop, checking done() between slices
+        spin_until_shutdown(node, done=sampled_until_done, timeout_sec=float(slice_text))
     node.destroy_node()
-    rclpy.try_shutdown()
     out.write_text(json.dumps({"variant": variant, "samples": samples, "ticks": ticks[0]}))
-
-
-def _rss_kib() -> int:
-    with open("/proc/self/status") as status:
-        return next(int(line.split()[1]) for line in status if line.startswith("VmRSS:"))
-
-
-def growth(samples: list[list[float]], warmup: float) -> tuple[float, float, float, float]:
-    """Slope and its standard error (MiB/h), first and last RSS (MiB) after ``warmup`` s."""
-    data = np.asarray(samples, dtype=float)
-    data = data[data[:, 0] >= warmup]
-    if len(data) < 3:
-        return math.nan, math.nan, math.nan, math.nan
-    hours, mib = data[:, 0] / 3600.0, data[:, 1] / 1024.0
-    centred = hours - hours.mean()
-    slope = float(centred @ (mib - mib.mean()) / (centred @ centred))
-    residual = mib - mib.mean() - slope * centred
-    stderr = math.sqrt(float(residual @ residual) / (len(data) - 2) / float(centred @ centred))
-    return slope, stderr, float(mib[0]), float(mib[-1])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -124,12 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.child:
         child(args.child[0], args.duration, args.interval, Path(args.child[1]))
         return 0
-    env = {**os.environ, "ROS_DOMAIN_ID": str(1 + (os.getpid() * 11) % 100)}
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE.parent), env.get("PYTHONPATH")]))
+    domain, env = rt.child_environment()
     print(
         f"bench_spin_growth: {len(args.variants)} variants side by side, {args.duration:g} s, "
-        f"slope after {args.warmup:g} s, ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}",
+        f"slope after {args.warmup:g} s, ROS_DOMAIN_ID={domain}",
         flush=True,
     )
     with tempfile.TemporaryDirectory(prefix="bench_spin_growth_") as workdir:
@@ -149,10 +127,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{variant:<18} failed (no samples)")
                 continue
             found = json.loads(out.read_text())
-            slope, stderr, first, last = growth(found["samples"], args.warmup)
+            series = Series(variant)
+            for t, value in found["samples"]:
+                series.add(t, value)
+            g = series.growth(args.warmup)
             print(
-                f"{variant:<18} {slope:+8.2f} ± {stderr:.2f} MiB/h   "
-                f"{first:7.1f} -> {last:7.1f} MiB   {found['ticks']}"
+                f"{variant:<18} {g['slope']:+8.2f} ± {g['stderr']:.2f} MiB/h   "
+                f"{g['first']:7.1f} -> {g['last']:7.1f} MiB   {found['ticks']}"
             )
     return 0
 
