@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
+from scipy import signal, special
 
 from ..sections import sosfilt_from, zero_phase
 from .base import KELVIN
@@ -301,8 +301,10 @@ def shift_weights(fraction: float) -> NDArray[np.float64]:
     offsets = np.arange(-SHIFT_HALF_TAPS + 1, SHIFT_HALF_TAPS + 1) - fraction
     # The Kaiser window evaluated at the fractional offsets.
     position = offsets / (SHIFT_HALF_TAPS + 0.5)
-    taper = np.i0(_SHIFT_KAISER_BETA * np.sqrt(np.clip(1.0 - position**2, 0.0, 1.0)))
-    weights = np.sinc(offsets) * taper / np.i0(_SHIFT_KAISER_BETA)
+    # scipy's compiled I0 (numpy's is a Python loop of Chebyshev series: 0.1 ms a call, for
+    # every delay a fit's Jacobian tries); the two agree within 5e-16.
+    taper = special.i0(_SHIFT_KAISER_BETA * np.sqrt(np.clip(1.0 - position**2, 0.0, 1.0)))
+    weights = np.sinc(offsets) * taper / special.i0(_SHIFT_KAISER_BETA)
     return weights / weights.sum()
 
 

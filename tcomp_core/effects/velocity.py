@@ -38,11 +38,25 @@ SIMULATED_PERIOD_S = 6.0
 
 
 def _basis(context: FitContext) -> NDArray[np.float64]:
-    start, stop = float(context.time[0]), float(context.time[-1])
-    n_intervals = max(1, round((stop - start) / context.knot_spacing_s))
+    """The spline's design matrix at the context's sample times, shape (N, n + 1), read-only.
+
+    Every model with the effect has its own :class:`Velocity`, and a diagnosis fits dozens of
+    them on the same samples: the matrix (a millisecond each) is shared by the times' content.
+    """
+    time = np.ascontiguousarray(context.time, dtype=np.float64)
+    return _design_matrix(time.tobytes(), float(context.knot_spacing_s))
+
+
+@functools.lru_cache(maxsize=8)
+def _design_matrix(time_bytes: bytes, knot_spacing_s: float) -> NDArray[np.float64]:
+    time = np.frombuffer(time_bytes, dtype=np.float64)
+    start, stop = float(time[0]), float(time[-1])
+    n_intervals = max(1, round((stop - start) / knot_spacing_s))
     inner = np.linspace(start, stop, n_intervals + 1)
     knots = np.concatenate(([start] * _DEGREE, inner, [stop] * _DEGREE))
-    return BSpline.design_matrix(context.time, knots, _DEGREE).toarray()
+    design = BSpline.design_matrix(time, knots, _DEGREE).toarray()
+    design.flags.writeable = False
+    return design
 
 
 @functools.lru_cache(maxsize=16)
