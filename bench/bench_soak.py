@@ -5,7 +5,10 @@ samples the resident set size (``VmRSS`` of ``/proc/<pid>/status``) every ``--in
 seconds and reports its growth as the least-squares slope of RSS against time over the samples
 after ``--warmup`` seconds (start-up, the first window, the first fits and the allocator's
 first arenas are not growth), with the first and last RSS after the warm-up and the number of
-samples. The slope's standard error is printed too: a slope within two of them is noise.
+samples. The slope's standard error is printed too: a slope within two of them is noise. The
+slope over the last two thirds of those samples is printed as well: the node settles for some
+twenty minutes (+5.5 MiB/h over the first third of an hour), so an hour's whole slope is mostly
+that settling and the late one is what it keeps growing by (run an hour to measure a week).
 
 ``--mode node`` (the default) – the real node
     ``python -m tcomp_ros.compensator`` (bench_realtime.py's ``NODE_PARAMETERS``: window 2 s,
@@ -119,7 +122,13 @@ class Series:
             self.values.append(float(value))
 
     def growth(self, start: float, per: float = 3600.0) -> dict:
-        """Least-squares slope (MiB per ``per`` s) over the samples at ``start`` or later."""
+        """Least-squares slope (MiB per ``per`` s) over the samples at ``start`` or later.
+
+        Also the slope over the last two thirds of those samples' span (``late_slope``,
+        ``late_stderr``, from ``late_from_s``): a process that settles for tens of minutes
+        (its heaps and rclpy's pools reaching their working size) has a whole-run slope that
+        is mostly the settling; the late one is what it keeps growing by.
+        """
         t = np.asarray(self.times)
         v = np.asarray(self.values) / MIB
         keep = t >= start
@@ -127,11 +136,12 @@ class Series:
         result = {"label": self.label, "samples": int(t.size), "series": self}
         if t.size < 3 or np.ptp(t) <= 0.0:
             return {**result, "slope": math.nan, "stderr": math.nan, "first": math.nan,
-                    "last": math.nan, "span_s": 0.0}  # fmt: skip
-        tc = t - t.mean()
-        slope = float(tc @ (v - v.mean()) / (tc @ tc))
-        residual = v - v.mean() - slope * tc
-        stderr = math.sqrt(float(residual @ residual) / (t.size - 2) / float(tc @ tc))
+                    "last": math.nan, "span_s": 0.0, "late_slope": math.nan,
+                    "late_stderr": math.nan, "late_from_s": math.nan}  # fmt: skip
+        slope, stderr = _slope(t, v)
+        late_from = float(t[0] + (t[-1] - t[0]) / 3.0)
+        late = t >= late_from
+        late_slope, late_stderr = _slope(t[late], v[late]) if late.sum() >= 3 else (math.nan,) * 2
         return {
             **result,
             "slope": slope * per,
@@ -139,7 +149,18 @@ class Series:
             "first": float(v[0]),
             "last": float(v[-1]),
             "span_s": float(t[-1] - t[0]),
+            "late_slope": late_slope * per,
+            "late_stderr": late_stderr * per,
+            "late_from_s": late_from,
         }
+
+
+def _slope(t: np.ndarray, v: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of ``v`` against ``t`` and its standard error (≥ 3 samples)."""
+    tc = t - t.mean()
+    slope = float(tc @ (v - v.mean()) / (tc @ tc))
+    residual = v - v.mean() - slope * tc
+    return slope, math.sqrt(float(residual @ residual) / (t.size - 2) / float(tc @ tc))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -449,6 +470,10 @@ def print_report(args: argparse.Namespace, result: dict) -> None:
             f"{g['first']:8.1f} -> {g['last']:8.1f} MiB over {g['span_s']:.0f} s, "
             f"{g['samples']} samples"
         )
+    late = result["growth"][0].get("late_from_s", math.nan)
+    print(f"the last two thirds (from {late:.0f} s), when the settling is over:")
+    for g in result["growth"]:
+        print(f"  {g['label']:<30} {g['late_slope']:+8.2f} ± {g['late_stderr']:.2f} MiB/h")
     first = result["growth"][0]
     if result["mode"] == "node":
         base = result["growth"][1]
@@ -482,8 +507,12 @@ def print_report(args: argparse.Namespace, result: dict) -> None:
         if abs(speed - 1.0) > 0.05:
             print(f"  RSS per hour of stream: {first['slope'] / speed:+.2f} MiB")
     # A week of the stream (not of this run's wall time, when unpaced).
-    week = first["slope"] / result.get("stream_per_wall", 1.0) * 24 * 7
-    print(f"{first['label']} over a week of the stream at this slope: {week:+.0f} MiB")
+    per_week = 24 * 7 / result.get("stream_per_wall", 1.0)
+    print(
+        f"{first['label']} over a week of the stream: {first['slope'] * per_week:+.0f} MiB at "
+        f"the whole run's slope, {first['late_slope'] * per_week:+.0f} MiB at its last two "
+        "thirds'"
+    )
     print(f"MALLOC_ARENA_MAX={os.environ.get('MALLOC_ARENA_MAX', '(unset)')}")
 
 
