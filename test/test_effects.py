@@ -220,3 +220,31 @@ def test_the_tau_swing_of_a_film_at_0_kelvin_is_unbounded_not_a_warning():
         warnings.simplefilter("error")
         assert tau_swing(0.5, film) == np.inf
     assert 0.0 < tau_swing(0.5, film[50:]) < 1.0
+
+
+def test_models_on_the_same_samples_share_one_read_only_speed_basis():
+    """The speed spline's basis is computed once per set of sample times and shared between
+    models: it must be the B-spline basis of those times, the same for each model, and
+    read-only, so that no fit can change another's."""
+    from scipy.interpolate import BSpline
+
+    from tcomp_core.effects.velocity import Velocity
+
+    time = np.arange(3000) * DT
+    readings = 300.0 + np.sin(2 * np.pi * time)
+    context = make_context(time, readings, readings, DT, knot_spacing_s=1.0)
+    first, second = Velocity(), Velocity()
+    shared = first.log_factor_jacobian(context)
+    design = second._design(context)
+    assert design is first._design(context)
+    assert not design.flags.writeable
+    with pytest.raises(ValueError):
+        design[0, 0] = 1.0
+    inner = np.linspace(0.0, time[-1], round(time[-1] / 1.0) + 1)
+    knots = np.concatenate(([0.0] * 3, inner, [time[-1]] * 3))
+    expected = BSpline.design_matrix(time, knots, 3).toarray()
+    np.testing.assert_array_equal(design, expected)
+    assert len(shared) == expected.shape[1] - 1
+    # Other sample times get their own basis.
+    later = make_context(time[:2000], readings[:2000], readings[:2000], DT, knot_spacing_s=1.0)
+    assert Velocity()._design(later).shape[0] == 2000

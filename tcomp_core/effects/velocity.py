@@ -42,12 +42,13 @@ def _basis(context: FitContext) -> NDArray[np.float64]:
 
     Every model with the effect has its own :class:`Velocity`, and a diagnosis fits dozens of
     them on the same samples: the matrix (a millisecond each) is shared by the times' content.
+    Two are kept (each is N × n floats; a diagnosis works on one record or window at a time).
     """
     time = np.ascontiguousarray(context.time, dtype=np.float64)
     return _design_matrix(time.tobytes(), float(context.knot_spacing_s))
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=2)
 def _design_matrix(time_bytes: bytes, knot_spacing_s: float) -> NDArray[np.float64]:
     time = np.frombuffer(time_bytes, dtype=np.float64)
     start, stop = float(time[0]), float(time[-1])
