@@ -35,9 +35,10 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     parser = verbs.add_parser(
         "diagnose",
         help="compare the model with the data, find where it fails and the missing effect",
-        description="Fit the first-order model (beta-GTLS), score its free-run simulation of "
-        "the slow sensor on held-out blocks, analyse where it fails, rank the effects "
-        f"({', '.join(EFFECT_NAMES)}) by held-out error after refitting, and add the best "
+        description="Fit the first-order model (by the cross-relation from a beta-GTLS start, "
+        "or at the default path's ml-eiv tau where those simulate better), score its free-run "
+        "simulation of the slow sensor on held-out blocks, analyse where it fails, rank the "
+        f"effects ({', '.join(EFFECT_NAMES)}) by held-out error after refitting, and add the best "
         "while the error falls significantly. A long record (over 600 000 samples: 2 minutes "
         "at 5 kHz) is diagnosed in windows streamed from the file (60 s at 5 kHz, 300 000 "
         "samples), each with its own row, and the whole record's verdict is the one most "

@@ -65,7 +65,7 @@ def format_diagnosis(diagnosis: Diagnosis) -> str:
     lines = [
         f"{diagnosis.source}: {diagnosis.time.size} samples at {1 / diagnosis.dt:.6g} Hz; "
         f"tc{diagnosis.slow} (the slower) simulated from tc{3 - diagnosis.slow}",
-        f"base model (beta-GTLS, phi = 1): tau1 = {base.tau1:.5g} s, tau2 = {base.tau2:.5g} s, "
+        f"base model (first order): tau1 = {base.tau1:.5g} s, tau2 = {base.tau2:.5g} s, "
         f"held-out error {base.error_pct:.3g} %",
         "where it fails:",
         *(f"  - {finding}" for finding in diagnosis.failure.findings),
