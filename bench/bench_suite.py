@@ -28,9 +28,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench_compensate import BLAS_THREADS
+
 ROOT = Path(__file__).resolve().parent.parent
-#: make test's environment: the workers already fill the cores.
-ONE_BLAS_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def machine_ticks() -> tuple[int, int]:
@@ -44,7 +44,7 @@ def run_suite(workers: str, pytest_args: list[str], record: Path) -> tuple[float
     """Run pytest; returns (wall s, machine busy share, exit code)."""
     env = {
         **os.environ,
-        **ONE_BLAS_THREAD,
+        **dict.fromkeys(BLAS_THREADS, "1"),  # make test's: the workers already fill the cores
         "SUITE_CPU_RECORD": str(record),
         "PYTHONPATH": os.pathsep.join(
             filter(None, (str(Path(__file__).parent), os.environ.get("PYTHONPATH")))
@@ -69,9 +69,9 @@ def summary(rows: list[dict], wall: float, busy: float, top: int) -> str:
         totals[1] += row["self"]
         totals[2] += row["children"]
         totals[3] += _idle_s(row["wall"], row["self"], row["children"])
-    worker_s = sum(row["wall"] for row in rows)
-    cpu_s = sum(row["self"] + row["children"] for row in rows)
-    idle_s = sum(_idle_s(row["wall"], row["self"], row["children"]) for row in rows)
+    columns = zip(*files.values(), strict=True)
+    worker_s, own_s, children_s, idle_s = (sum(column) for column in columns)
+    cpu_s = own_s + children_s
     lines = [
         f"tests {len(rows)}, wall {wall:.1f} s, machine busy {100 * busy:.0f} %",
         f"worker time {worker_s:.0f} s: CPU of the tests and their children {cpu_s:.0f} s, "
