@@ -92,9 +92,11 @@ def test_likelihood_picks_the_signal_model(kind, model):
         assert result.kind == model
         assert set(result.candidates) == set(AUTO_MODELS)
         # Akaike: the chosen model gives up at most the largest penalty difference (the
-        # autoregressive model's order + 1) against the best raw likelihood.
+        # autoregressive model's order + 1) against the best raw likelihood. The candidates'
+        # likelihoods come from the fit's compiled modal pass, the result's from the smoother's
+        # forward pass: the same sums in another order (1e-9 nats apart).
         best = max(result.candidates.values())
-        assert best - (max(AR_ORDERS) + 1) <= result.log_likelihood <= best
+        assert best - (max(AR_ORDERS) + 1) <= result.log_likelihood <= best + 1e-6
 
 
 @pytest.mark.slow

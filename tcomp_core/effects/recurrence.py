@@ -3,9 +3,8 @@
 A radiating sensor (a loss ∝ T⁴ taken at the state) and a sensor whose τ follows its film
 temperature are nonlinear recurrences, and one whose τ follows the flow is linear with a pole
 per sample: neither is an ``lfilter``. Every free-run simulation of such a sensor in a fit runs
-one sample at a time, so the loops are compiled by numba (:func:`numba.njit`, cached on disk
-beside this file, or in numba's user cache where that is read-only; in memory when neither is
-writable) on their first use; without numba the same functions run as Python.
+one sample at a time, so the loops are compiled by numba on their first use
+(:func:`tcomp_core.compiled.compile_loops`); without numba the same functions run as Python.
 """
 
 from __future__ import annotations
@@ -17,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ..compiled import compile_loops
 from .base import KELVIN
 
 __all__ = ["lag_steps", "level_lag_steps"]
@@ -82,18 +82,9 @@ def _level_lag_steps(
 
 
 @functools.cache
-def _kernels() -> tuple[Callable[..., None], Callable[..., None]]:
+def _kernels() -> tuple[Callable[..., Any], ...]:
     """The two loops, compiled where numba is installed (once per process, cached on disk)."""
-    try:
-        import numba
-    except ImportError:  # pragma: no cover - numba is a dependency; Python is the fallback
-        return _lag_steps, _level_lag_steps
-    try:
-        compile_: Any = numba.njit(cache=True, nogil=True)
-        return compile_(_lag_steps), compile_(_level_lag_steps)
-    except RuntimeError:  # no writable cache directory (a read-only install, no home)
-        compile_ = numba.njit(nogil=True)
-        return compile_(_lag_steps), compile_(_level_lag_steps)
+    return compile_loops(_lag_steps, _level_lag_steps)
 
 
 def _floats(values: NDArray[Any]) -> NDArray[np.float64]:

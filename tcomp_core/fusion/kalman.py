@@ -14,10 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
-from scipy import signal
 
+from .loops import discounted_sums, modal_innovations, riccati_by_doubling
 from .recursion import (
     MAX_EIGENVECTOR_CONDITION,
+    MODAL_CONDITION,
     decay_horizon,
     driven_states,
     matrix_powers,
@@ -61,16 +62,31 @@ class SteadyState:
 def steady_state(model: StateSpace) -> SteadyState:
     """Solve the discrete algebraic Riccati equation for the steady-state Kalman filter.
 
+    By doubling (:func:`~tcomp_core.fusion.loops.riccati_by_doubling`, a few dozen
+    microseconds); where that does not converge to a filter whose closed loop decays, by scipy's
+    ``solve_discrete_are`` (a QZ decomposition, ten times slower), which raises if there is no
+    stabilising solution.
+
     Raises
     ------
     numpy.linalg.LinAlgError, ValueError
         If the Riccati equation has no stabilising solution (scipy's errors).
     """
     f, h = model.transition, model.observation
+    doubled = riccati_by_doubling(f, h, model.covariance, model.noise)
+    if doubled is not None:
+        gains = _gains(model, doubled)
+        if np.max(np.abs(np.linalg.eigvals(gains.closed_loop))) < 1.0:
+            return gains
     predicted = np.asarray(
         scipy.linalg.solve_discrete_are(f.T, h.T, model.covariance, model.noise), dtype=np.float64
     )
-    predicted = 0.5 * (predicted + predicted.T)
+    return _gains(model, 0.5 * (predicted + predicted.T))
+
+
+def _gains(model: StateSpace, predicted: NDArray[np.float64]) -> SteadyState:
+    """The filter's gain, covariances and closed loop from the prediction covariance (n, n)."""
+    f, h = model.transition, model.observation
     innovation = h @ predicted @ h.T + model.noise
     gain = scipy.linalg.solve(innovation, h @ predicted, assume_a="pos").T
     filtered = predicted - gain @ innovation @ gain.T
@@ -112,11 +128,32 @@ def _whiten(values: NDArray[np.float64], covariance: NDArray[np.float64]) -> NDA
     return np.stack((first, (values[1] - l10 * first) / l11))
 
 
-def _gaussian_log_likelihood(whitened: NDArray, covariance: NDArray) -> float:
-    """Log-likelihood (nats) of Gaussian innovations of covariance (2, 2), whitened (2, N)."""
+def _gaussian_log_likelihood(sum_of_squares: float, count: int, covariance: NDArray) -> float:
+    """Log-likelihood (nats) of ``count`` Gaussian innovations of covariance (2, 2).
+
+    From the sum of squares of the whitened innovations.
+    """
     _, logdet = np.linalg.slogdet(covariance)
-    count = whitened.shape[1]
-    return -0.5 * (count * (logdet + 2.0 * math.log(2.0 * math.pi)) + float(np.sum(whitened**2)))
+    return -0.5 * (count * (logdet + 2.0 * math.log(2.0 * math.pi)) + sum_of_squares)
+
+
+def _profile_log_likelihood(
+    gains: SteadyState,
+    whitened: NDArray[np.float64],
+    sum_of_squares: float,
+    eigen: tuple[NDArray[np.complex128], NDArray[np.complex128], float] | None = None,
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+    """Log-likelihood with the initial state at its GLS estimate, the estimate and its covariance.
+
+    ``whitened`` (2, N) are the innovations from a zero initial state, whitened; ``eigen`` the
+    closed loop's eigenvalues, eigenvectors and their condition number when the caller has them.
+    """
+    normal, projection = _initial_state_equations(gains, whitened, eigen)
+    covariance = np.asarray(np.linalg.pinv(normal, rcond=1e-13, hermitian=True), np.float64)
+    estimate = covariance @ projection
+    # Σ|w - D x̂|² = Σ|w|² - pᵀ x̂ at the least-squares x̂ (p = Dᵀ w).
+    log_likelihood = _gaussian_log_likelihood(sum_of_squares, whitened.shape[1], gains.innovation)
+    return log_likelihood + 0.5 * float(projection @ estimate), estimate, covariance
 
 
 def forward_pass(
@@ -148,27 +185,26 @@ def forward_pass(
         last = gains.closed_loop @ before[:, -1] + drive @ y[:, -1]
         predicted = np.concatenate((before, last[:, None]), axis=1)
     whitened = _whiten(innovations, gains.innovation)
+    sum_of_squares = float(np.sum(whitened**2))
     if initial is not None:
-        log_likelihood = _gaussian_log_likelihood(whitened, gains.innovation)
+        log_likelihood = _gaussian_log_likelihood(sum_of_squares, count, gains.innovation)
         return ForwardPass(predicted, innovations, log_likelihood)
-    normal, projection = _initial_state_equations(gains, whitened)
-    covariance = np.asarray(np.linalg.pinv(normal, rcond=1e-13, hermitian=True), np.float64)
-    estimate = covariance @ projection
-    # Σ|w - D x̂|² = Σ|w|² - pᵀ x̂ at the least-squares x̂ (p = Dᵀ w).
-    log_likelihood = _gaussian_log_likelihood(whitened, gains.innovation)
-    log_likelihood += 0.5 * float(projection @ estimate)
+    log_likelihood, estimate, covariance = _profile_log_likelihood(gains, whitened, sum_of_squares)
     return ForwardPass(predicted, innovations, log_likelihood, estimate, covariance)
 
 
 def _initial_state_equations(
-    gains: SteadyState, whitened: NDArray[np.float64]
+    gains: SteadyState,
+    whitened: NDArray[np.float64],
+    eigen: tuple[NDArray[np.complex128], NDArray[np.complex128], float] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Normal equations ``DᵀD x_0 = Dᵀ w`` of the initial state, D_k = L⁻¹ H A^k.
 
     With ``A = V Λ V⁻¹``, ``D_k = Σ_i a_i λ_i^k b_iᵀ`` (a_i = L⁻¹ H V e_i, b_i the i-th row
     of V⁻¹), so ``DᵀD`` is a sum of geometric series and ``Dᵀw`` needs ``Σ_k λ̄_i^k w_k``
-    (a backward first-order recursion per eigenvalue): O(N n) work without forming D. Falls
-    back to forming D when V is ill conditioned.
+    (:func:`~tcomp_core.fusion.loops.discounted_sums`): O(N n) work without forming D. Falls
+    back to forming D when V is ill conditioned. ``eigen`` is (Λ, V, cond V) of the closed loop
+    when the caller has it.
 
     Returns
     -------
@@ -176,8 +212,12 @@ def _initial_state_equations(
     projection : ndarray, shape (n,)
     """
     count = whitened.shape[1]
-    eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
-    if np.linalg.cond(vectors) > MAX_EIGENVECTOR_CONDITION:
+    if eigen is None:
+        eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
+        condition = float(np.linalg.cond(vectors))
+    else:
+        eigenvalues, vectors, condition = eigen
+    if condition > MAX_EIGENVECTOR_CONDITION:
         length = decay_horizon(gains.closed_loop, count)
         powers = matrix_powers(gains.closed_loop, length, slice(-2, None))  # (2, L, n)
         design = _whiten(powers, gains.innovation)
@@ -190,31 +230,9 @@ def _initial_state_equations(
     series = np.where(near_one, count, (1.0 - ratio**count) / np.where(near_one, 1.0, 1.0 - ratio))
     inner = (columns.conj().T @ columns) * series
     normal = (rows.conj().T @ inner @ rows).real
-    transforms = np.stack(
-        [_discounted_sum(whitened, pole.conj()) for pole in eigenvalues], axis=1
-    )  # Σ_k λ̄_i^k w_k as columns, (2, n)
+    transforms = discounted_sums(whitened, eigenvalues.conj())  # Σ_k λ̄_i^k w_k, (2, n)
     projection = (rows.conj().T @ np.sum(columns.conj() * transforms, axis=0)).real
     return 0.5 * (normal + normal.T), projection
-
-
-def _discounted_sum(values: NDArray[np.float64], pole: complex) -> NDArray[np.complex128]:
-    """``Σ_k pole^k values[:, k]``, shape (2,), over the terms that reach the sum's precision.
-
-    A term k is below ``|values|·ε`` once ``|pole|^k ≤ ε (1 − |pole|)`` (the tail after it sums
-    to less): a closed-loop mode decays long before the end of a long record, and summing only
-    its first samples makes the likelihood of a 20 kHz record several times cheaper.
-    """
-    count = values.shape[1]
-    radius = abs(pole)
-    if radius < 1.0 - 1e-12:
-        floor = _EPS * (1.0 - radius)
-        reach = math.log(floor) / math.log(radius) if radius > 0.0 else 1.0
-        count = min(count, math.ceil(reach) + 1)
-    # Backwards through the first ``count`` samples: the last output is the sum.
-    return signal.lfilter([1.0], [1.0, -pole], values[:, count - 1 :: -1], axis=1)[:, -1]
-
-
-_EPS = float(np.finfo(np.float64).eps)
 
 
 def innovation_log_likelihood(model: FusionModel, y: NDArray[np.float64]) -> float:
@@ -222,7 +240,35 @@ def innovation_log_likelihood(model: FusionModel, y: NDArray[np.float64]) -> flo
     space = model.state_space()
     try:
         gains = steady_state(space)
-        value = forward_pass(space, gains, y, None, states=False).log_likelihood
+        value = _modal_log_likelihood(space, gains, y)
+        if value is None:
+            value = forward_pass(space, gains, y, None, states=False).log_likelihood
     except (np.linalg.LinAlgError, ValueError):
         return -math.inf
     return value if math.isfinite(value) else -math.inf
+
+
+def _modal_log_likelihood(
+    space: StateSpace, gains: SteadyState, y: NDArray[np.float64]
+) -> float | None:
+    """:func:`forward_pass`'s log-likelihood (x_0 estimated) run in the closed loop's eigenbasis.
+
+    One compiled pass over the samples (:func:`~tcomp_core.fusion.loops.modal_innovations`)
+    instead of a filter call per mode; the same sums in another order. None where the
+    eigenvectors are too ill conditioned for the modes (:data:`~.recursion.MODAL_CONDITION`):
+    :func:`forward_pass` then runs in the Schur basis.
+    """
+    eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
+    condition = float(np.linalg.cond(vectors))
+    if condition > MODAL_CONDITION:
+        return None
+    inverse = np.linalg.inv(vectors)
+    kept = eigenvalues.imag >= 0.0  # real ones, and one of each conjugate pair
+    weight = np.where(eigenvalues.imag[kept] > 0.0, 2.0, 1.0)
+    drive = inverse[kept] @ (space.transition @ gains.gain)
+    read = vectors[-2:][:, kept] * weight
+    whitened, sum_of_squares = modal_innovations(
+        eigenvalues[kept], drive, read, y, gains.innovation
+    )
+    eigen = (eigenvalues, vectors, condition)
+    return _profile_log_likelihood(gains, whitened, sum_of_squares, eigen)[0]

@@ -1,0 +1,156 @@
+"""The Kalman likelihood's compiled loops (tcomp_core.fusion.loops) against the computations
+they replace: scipy's Riccati solver, the forward pass's filters and the same loops run by
+Python."""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from sim_records import make_pair
+
+from tcomp_core.fusion import fitting, kalman, loops
+
+#: log10 offsets of each model's hyper-parameters around its reference scale (fitting.py's
+#: search coordinates), from far below to far above what records give.
+SPREAD = (-8.0, -2.0, 3.0)
+
+
+@functools.cache
+def fitting_of(kind: str, noise_percent: float = 1.0) -> fitting._Fitting:
+    pair = make_pair(kind, duration=4.0, noise_percent=noise_percent, seed=5)
+    return fitting._prepare(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, None, None)
+
+
+def models(fit: fitting._Fitting):
+    """Every kind of signal model over a spread of its hyper-parameters."""
+    for order, variance, cutoff, level in itertools.product(
+        fitting.BAND_LIMITED_ORDERS, SPREAD, (-2.9, -1.0, -0.05), SPREAD
+    ):
+        yield fitting._band_limited_model(fit, [variance, cutoff, level - 4.0], order)
+    for drive, level in itertools.product(SPREAD, SPREAD):
+        yield fitting._periodic_model(fit, [drive, level - 4.0])
+    for kind, scale in itertools.product(("random-walk", "integrated-random-walk"), SPREAD):
+        yield fitting._random_walk_model(fit, kind, [scale])
+    yield fitting._fit_autoregressive(fit)
+
+
+def riccati_residual(space, predicted):
+    """|F (P − K S Kᵀ) Fᵀ + Q − P| relative to |P| (max norms)."""
+    f, h = space.transition, space.observation
+    innovation = h @ predicted @ h.T + space.noise
+    filtered = predicted - predicted @ h.T @ np.linalg.solve(innovation, h @ predicted)
+    residual = f @ filtered @ f.T + space.covariance - predicted
+    return np.max(np.abs(residual)) / np.max(np.abs(predicted))
+
+
+@pytest.mark.parametrize("kind", ["multisine", "ramp"])
+def test_doubling_solves_the_riccati_equation_as_scipy_does_or_hands_it_over(kind):
+    doubled = 0
+    for model in models(fitting_of(kind)):
+        space = model.state_space()
+        found = loops.riccati_by_doubling(
+            space.transition, space.observation, space.covariance, space.noise
+        )
+        if found is None:
+            continue
+        doubled += 1
+        assert riccati_residual(space, found) <= loops.DOUBLING_RESIDUAL
+        try:
+            expected = scipy.linalg.solve_discrete_are(
+                space.transition.T, space.observation.T, space.covariance, space.noise
+            )
+        except (np.linalg.LinAlgError, ValueError):
+            continue  # scipy's QZ gives up where doubling solves it: the residual says so
+        if riccati_residual(space, expected) < 1e-12:  # scipy's own solution is exact here
+            scale = np.max(np.abs(expected))
+            assert np.max(np.abs(found - expected)) <= 1e-6 * scale, (model, found, expected)
+    assert doubled >= 50  # the doubling is the rule, scipy the exception
+
+
+def test_a_badly_scaled_riccati_equation_is_handed_to_scipy():
+    """A noise-free record floors σ near 1e-5 °C against a drive near 1e6 °C²: the doubling
+    settles on a matrix that solves nothing (residual ~1), and scipy's balanced QZ solves it."""
+    fit = fitting_of("ramp", noise_percent=0.0)
+    space = fitting._periodic_model(fit, [3.0, -4.0]).state_space()
+    assert np.max(space.noise) < 1e-8 and np.max(space.covariance) > 1e5
+    assert (
+        loops.riccati_by_doubling(
+            space.transition, space.observation, space.covariance, space.noise
+        )
+        is None
+    )
+    gains = kalman.steady_state(space)
+    assert riccati_residual(space, gains.predicted) < 1e-10
+
+
+@pytest.mark.parametrize("kind", ["multisine", "sinusoid", "ramp", "exhaust"])
+def test_the_modal_likelihood_is_the_forward_pass_likelihood(kind):
+    fit = fitting_of(kind)
+    compared = 0
+    for model in models(fit):
+        space = model.state_space()
+        try:
+            gains = kalman.steady_state(space)
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        modal = kalman._modal_log_likelihood(space, gains, fit.y)
+        if modal is None:
+            continue
+        passed = kalman.forward_pass(space, gains, fit.y, None, states=False).log_likelihood
+        if not math.isfinite(passed):
+            continue
+        compared += 1
+        # The same sums in another order; on the worst models (likelihoods of -1e4 to -1e7
+        # nats, far from any fit) the initial state's projection cancels to ~1e-7 of them,
+        # still far below the fit's tolerance of 0.05 nats (fitting._polish).
+        assert modal == pytest.approx(passed, rel=1e-6), model
+    assert compared >= 50
+
+
+def test_the_compiled_loops_compute_what_python_computes():
+    """numba's kernels against the same functions run by Python, on a band-limited model."""
+    fit = fitting_of("multisine")
+    space = fitting._band_limited_model(fit, [0.0, -1.0, -10.0], 4).state_space()
+    coupling = space.observation.T @ np.linalg.solve(space.noise, space.observation)
+    arguments = (
+        np.ascontiguousarray(space.transition.T),
+        coupling,
+        space.covariance,
+        loops.DOUBLING_TOLERANCE,
+        loops.DOUBLING_STEPS,
+    )
+    compiled_doubling, compiled_modes, compiled_sums = loops._kernels()
+    assert compiled_doubling is not loops._doubling  # numba is installed: these are compiled
+    expected, steps = loops._doubling(*arguments)
+    found, found_steps = compiled_doubling(*arguments)
+    assert found_steps == steps > 0
+    np.testing.assert_allclose(found, expected, rtol=1e-12, atol=1e-12 * np.max(np.abs(expected)))
+
+    gains = kalman.steady_state(space)
+    eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
+    inverse = np.linalg.inv(vectors)
+    drive = inverse @ (space.transition @ gains.gain)
+    read = vectors[-2:].astype(np.complex128)
+    poles = eigenvalues.astype(np.complex128)
+    y = np.ascontiguousarray(fit.y[:, :500])
+    whitened = {}
+    for name, function in (("python", loops._modal_innovations), ("numba", compiled_modes)):
+        whitened[name] = np.empty(y.shape)
+        function(poles, drive.astype(np.complex128), read, y, 2.0, 0.5, 1.5, whitened[name])
+    np.testing.assert_allclose(whitened["numba"], whitened["python"], rtol=1e-12, atol=1e-12)
+
+    reach = np.array([500, 3, 0, 250][: poles.size] + [500] * max(0, poles.size - 4))
+    sums = {}
+    for name, function in (("python", loops._discounted), ("numba", compiled_sums)):
+        sums[name] = np.empty((2, poles.size), dtype=np.complex128)
+        function(whitened["python"], poles, reach, sums[name])
+    np.testing.assert_allclose(sums["numba"], sums["python"], rtol=1e-12, atol=1e-12)
+    # The sums themselves, as numpy writes them.
+    for i, pole in enumerate(poles):
+        expected_sum = whitened["python"][:, : reach[i]] @ pole ** np.arange(reach[i])
+        np.testing.assert_allclose(sums["python"][:, i], expected_sum, rtol=1e-10, atol=1e-10)
