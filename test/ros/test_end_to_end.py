@@ -131,7 +131,14 @@ def test_the_shipped_yaml_node_publishes_a_gas_near_the_offline_causal_filter():
     # the node's whole-record error came out 7.5 % against 1.2 % alone, and with three test
     # workers on two cores the model landed inside the second half: 6.5 % there). What
     # follows the landing, and the second half at the earliest, is scored against the offline
-    # causal filter; the whole record against Eq. 7.
+    # causal filter; the whole record against Eq. 7. Which pairs the node fits its signal model
+    # on (the newest 4096 when it asks, 0.8 s: eight periods of the 10 Hz sine) depends on the
+    # load too, and the fitted resonator's frequency with them: over this bag's 4096-pair
+    # stretches (every 500th pair) it lands between 9.99984 and 10.00010 Hz, and the offline
+    # causal filter run with each stretch's model (fit_signal_models on the stretch, then fuse
+    # with model=, causal=True) scores 0.078-0.176 % on the second half against 0.090 % with
+    # the whole record's; the node scored 0.028 % alone and up to 0.148 % in a full suite on
+    # two cores. The bound allows that spread.
     late = (index >= stamps.size // 2) & (index >= landed_pairs)
     node_late = reconstruction_error_percent(held[index[late]], node_gas[late])
     causal_late = reconstruction_error_percent(held[index[late]], offline[index[late]])
@@ -141,7 +148,7 @@ def test_the_shipped_yaml_node_publishes_a_gas_near_the_offline_causal_filter():
         f"second half: node {node_late:.3g} %, offline causal {causal_late:.3g} %; whole record: "
         f"node {node_error:.3g} %, Eq. 7 {eq7_error:.3g} %"
     )
-    assert node_late < 1.5 * causal_late
+    assert node_late < 2.0 * causal_late
     assert node_error < 0.2 * eq7_error
     # The τ published is that of the published gas (bags/README.md: τ1 = 0.0238 s).
     assert float(values["tau1_s"]) == pytest.approx(0.0238, rel=0.02)
