@@ -17,6 +17,7 @@ import pytest
 from tcomp_core.cli import main
 from tcomp_core.diagnose import diagnose, diagnosis_to_dict, fit_effects
 from tcomp_core.effects import EFFECT_NAMES
+from tcomp_core.errors import NoExcitationError
 from tcomp_core.io import Record, write_csv
 from tcomp_core.simulate_effects import simulate_effect
 
@@ -308,3 +309,21 @@ def test_a_fast_strong_velocity_change_is_found():
     assert found.base.error_pct >= 1.5 * found.final.error_pct
     assert found.final.tau1 == pytest.approx(sim.tau1, rel=0.05)
     assert found.final.tau2 == pytest.approx(sim.tau2, rel=0.05)
+
+
+def test_two_sensors_that_share_no_signal_are_refused_not_diagnosed():
+    """Noise alone on both channels (issue 26's 'noise' row): the default path refuses it, and a
+    diagnosis of it fitted τ to the few samples the noise happens to correlate over (τ1 at its
+    10 s bound, a 'property' suspect at 14.6 %). It is refused the same way, naming the file."""
+    rng = np.random.default_rng(3)
+    time = np.arange(5000) / 500.0
+    record = Record(
+        time=time,
+        tc1=rng.normal(300.0, 1.0, time.size),
+        tc2=rng.normal(300.0, 1.0, time.size),
+        ref=None,
+        source="noise.csv",
+        dt=0.002,
+    )
+    with pytest.raises(NoExcitationError, match=r"noise\.csv.*tc1 and tc2 share no signal"):
+        diagnose(record)

@@ -25,7 +25,7 @@ from ..filters import decimate
 from ..fusion.adequacy import phase_beyond_lags
 from ..io import Record
 from ..noise import NoiseEstimate, estimate_noise, model_noise, signal_band_edge
-from ..validation import check_excitation
+from ..validation import check_excitation, check_shared_signal
 from .quantisation import Quantisation, detect_quantisation, in_band_variance
 
 __all__ = ["PreparedData", "block_length_s", "prepare"]
@@ -156,7 +156,9 @@ def prepare(record: Record) -> PreparedData:
     DataError
         If the record is too short to hold estimation and validation blocks.
     NoExcitationError
-        If a signal is constant (nothing to diagnose).
+        If a signal is constant, or the two share no signal (noise alone, or sensors in
+        different gases: the default path refuses them too, and a fit of any model to them
+        finds only what the noise happens to correlate over).
     """
     if record.tc1.size < MIN_WORKING_SAMPLES:  # before decimation too: nothing to measure
         raise DataError(
@@ -165,6 +167,7 @@ def prepare(record: Record) -> PreparedData:
         )
     try:
         check_excitation(record.tc1, record.tc2)
+        check_shared_signal(record.tc1, record.tc2, record.dt)
     except NoExcitationError as exc:
         raise NoExcitationError(f"{record.source}: {exc}") from exc
     noise1, noise2, noise_source = _raw_noise(record)
