@@ -702,17 +702,24 @@ def test_a_delay_is_pinned_down_and_a_calibration_below_its_band_is_not_applied(
 
 
 @pytest.mark.slow
-def test_a_record_no_first_order_pair_fits_is_refused_not_compensated():
-    """Pure noise on both channels: the first-order fit ends on its τ bound, and the gas is
-    refused as the first-order path refuses it (it was written with τ1 = 10 s, exit 0)."""
+def test_a_record_no_first_order_pair_fits_is_refused_not_compensated(monkeypatch):
+    """Pure noise on both channels: refused as the first-order path refuses it (it was written
+    with τ1 = 10 s, exit 0). Past the check that the two share a signal, the first-order fit
+    ends on its τ bound and the gas is refused for that."""
     from tcomp_core.compensation import fit_output_model
-    from tcomp_core.errors import EstimationError
+    from tcomp_core.diagnose import prepare
+    from tcomp_core.errors import EstimationError, NoExcitationError
     from tcomp_core.io import Record
 
     rng = np.random.default_rng(26)
     time = np.arange(4000) * 0.002
     noise = 300.0 + rng.standard_normal((2, time.size))
     record = Record(time=time, tc1=noise[0], tc2=noise[1], ref=None, source="noise", dt=0.002)
+    with pytest.raises(NoExcitationError, match=r"noise: tc1 and tc2 share no signal"):
+        fit_output_model(record, ())
+    # The refusals of a record that shares a signal yet leaves τ undetermined, reached here by
+    # letting the noise past the shared-signal check.
+    monkeypatch.setattr(prepare, "check_shared_signal", lambda *args: None)
     with pytest.raises(
         EstimationError, match=r"noise: the first-order fit does not determine the time"
     ) as info:
@@ -1217,7 +1224,7 @@ def test_a_record_the_default_path_refuses_is_estimated_once(monkeypatch):
     by the diagnosis (which estimated it again, 0.3-0.5 s a record)."""
     from tcomp_core.compensation import fit_output_model, plan
     from tcomp_core.diagnose import pipeline
-    from tcomp_core.errors import EstimationError
+    from tcomp_core.errors import NoExcitationError
     from tcomp_core.io import Record
 
     calls = []
@@ -1234,6 +1241,6 @@ def test_a_record_the_default_path_refuses_is_estimated_once(monkeypatch):
     noise = 300.0 + rng.standard_normal((2, time.size))
     record = Record(time=time, tc1=noise[0], tc2=noise[1], ref=None, source="noise", dt=0.002)
     assert real(record) is None  # the default path refuses pure noise
-    with pytest.raises(EstimationError):
+    with pytest.raises(NoExcitationError):  # and so does the diagnosis, without estimating it
         fit_output_model(record, ())
     assert calls == ["noise"]
