@@ -7,7 +7,9 @@ process and of the processes it started and reaped (node processes, CLI children
 workers), and samples the machine's busy share from ``/proc/stat`` over the run. It prints
 the run's wall time, the machine's busy share, the workers' idle seconds (wall minus the CPU of
 the test and its children, summed over tests: what more workers than cores could fill) and
-the files that take the most worker time.
+the files that take the most worker time. The node's fitting and diagnosis workers are forked
+by a fork server (:mod:`tcomp_core.workers`), whose children a test never reaps: their CPU
+shows as idle time of the tests that ran them, not as children.
 
 Run::
 
