@@ -451,3 +451,21 @@ def test_each_window_starts_from_the_noise_ratio_the_last_one_measured():
     second = job.run().estimate
     assert second.phi == pytest.approx(3.0, rel=0.1)
     assert second.params["start_warm"] == 1.0
+
+
+def test_a_tau_undetermined_beside_level_and_gain_is_refused_not_overflowed():
+    """A 0.1 Hz sine seen by sensors of 20 and 100 ms for 8 s (0.8 periods, ωτ1 = 0.013): the τ
+    columns alone pass the condition check, but beside the fitted level and gain log τ1's
+    standard error is 4e6, and its interval raised OverflowError out of estimate()."""
+    pair = simulate_pair(
+        "sinusoid",
+        tau1=0.02,
+        tau2=0.1,
+        dt=0.002,
+        duration=8.0,
+        noise_percent=2.0,
+        seed=1,
+        signal_params={"freq_hz": 0.1},
+    )
+    with pytest.raises(NoExcitationError, match="not determined beside the sensors' level"):
+        estimate(pair.tc1, pair.tc2, pair.dt)

@@ -669,6 +669,11 @@ def _disagreement_message(problem: _CrossRelation, x: NDArray[np.float64], what:
     )
 
 
+#: Largest half-width of a 95 % interval of log τ that :func:`math.exp` can take (e^700 is
+#: near the largest double): beyond it the interval is no interval.
+_LARGEST_LOG_SPREAD = 700.0
+
+
 def _interval_params(tau: NDArray[np.float64], covariance: NDArray) -> dict[str, float]:
     """Standard errors (delta method, s) and 95 % intervals (exp of the log-τ interval, s)."""
     se_log = np.sqrt(np.diag(covariance))
@@ -766,6 +771,15 @@ def ml_eiv(
         if rival is not None:
             raise EstimationError(_gain_rival_message(problem, fit.x, rival, length))
     covariance = noise_variance * np.linalg.inv(jacobian.T @ jacobian)
+    se_log = np.sqrt(np.diag(covariance)[:2])
+    if not np.all(_Z * se_log < _LARGEST_LOG_SPREAD):
+        # The τ columns alone pass the condition check, but with the level and gain fitted
+        # beside them τ is not determined: its interval would span beyond floating point.
+        raise NoExcitationError(
+            "ml-eiv: the time constants are not determined beside the sensors' level and gain "
+            f"(standard errors of log tau1, log tau2 {se_log[0]:.3g}, {se_log[1]:.3g}): the "
+            "data carry no information on the time constants"
+        )
     params = {
         **_interval_params(tau, covariance),
         "noise_sigma2": math.sqrt(noise_variance),
