@@ -181,7 +181,12 @@ def _start_worker(pin_heap: bool) -> None:
 
 
 def _worker_context() -> multiprocessing.context.BaseContext:
-    """The fork server's context, the core preloaded (the server is one per process)."""
+    """The fork server's context, the core preloaded (the server is one per process).
+
+    ``spawn`` where the platform has no fork server (Windows).
+    """
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(list(WORKER_PRELOAD))
     return context
