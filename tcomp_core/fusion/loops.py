@@ -192,13 +192,16 @@ def riccati_by_doubling(
         P, symmetric.
     """
     coupling = observation.T @ np.linalg.solve(noise, observation)
-    solution, steps = _kernels()[0](
-        np.ascontiguousarray(transition.T, dtype=np.float64),
-        np.ascontiguousarray(coupling, dtype=np.float64),
-        np.ascontiguousarray(covariance, dtype=np.float64),
-        DOUBLING_TOLERANCE,
-        DOUBLING_STEPS,
-    )
+    try:
+        solution, steps = _kernels()[0](
+            np.ascontiguousarray(transition.T, dtype=np.float64),
+            np.ascontiguousarray(coupling, dtype=np.float64),
+            np.ascontiguousarray(covariance, dtype=np.float64),
+            DOUBLING_TOLERANCE,
+            DOUBLING_STEPS,
+        )
+    except ZeroDivisionError:  # a zero pivot: I + G H singular in rounding (it cannot be else)
+        return None
     if steps < 0 or not np.all(np.isfinite(solution)):
         return None
     solution = 0.5 * (solution + solution.T)
