@@ -137,16 +137,21 @@ def unpack_baseline(reference: str, into: Path) -> Path:
     return root
 
 
-def run_child(root: Path, source: str, scratch: Path) -> dict[str, Any]:
-    """One diagnosis in a child process with ``root``'s code first on the path."""
-    out = scratch / "result.json"
+def child_environment(root: Path) -> dict[str, str]:
+    """This process's environment with ``root``'s code first on ``PYTHONPATH``, one BLAS thread."""
     environment = dict(os.environ)
     environment["PYTHONPATH"] = os.pathsep.join(
         [str(root), *filter(None, [environment.get("PYTHONPATH")])]
     )
     environment.setdefault("OMP_NUM_THREADS", "1")
+    return environment
+
+
+def run_child(root: Path, source: str, scratch: Path) -> dict[str, Any]:
+    """One diagnosis in a child process with ``root``'s code first on the path."""
+    out = scratch / "result.json"
     command = [sys.executable, str(Path(__file__).resolve()), "--child", source, str(out)]
-    subprocess.run(command, env=environment, check=True, cwd=REPOSITORY)
+    subprocess.run(command, env=child_environment(root), check=True, cwd=REPOSITORY)
     return json.loads(out.read_text())
 
 

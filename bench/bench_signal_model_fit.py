@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -34,7 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench_diagnose_speed import differences, merge_base, unpack_baseline
+from bench_diagnose_speed import child_environment, differences, merge_base, unpack_baseline
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 KINDS = ("sinusoid", "ramp", "multisine", "exhaust")
@@ -93,11 +92,8 @@ def child(out: str) -> None:
 def run_child(root: Path, scratch: Path) -> dict[str, Any]:
     """The child with ``root``'s code first on the path."""
     out = scratch / "fits.json"
-    environment = dict(os.environ)
-    environment["PYTHONPATH"] = os.pathsep.join(
-        [str(root), *filter(None, [environment.get("PYTHONPATH")])]
-    )
-    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    environment = child_environment(root)
+    for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         environment.setdefault(name, "1")
     command = [sys.executable, str(Path(__file__).resolve()), "--child", str(out)]
     subprocess.run(command, env=environment, check=True, cwd=REPOSITORY)

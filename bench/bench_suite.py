@@ -31,15 +31,9 @@ import time
 from pathlib import Path
 
 from bench_compensate import BLAS_THREADS
+from bench_realtime import machine_ticks
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def machine_ticks() -> tuple[int, int]:
-    """(busy, total) clock ticks of all CPUs since boot, from the first line of /proc/stat."""
-    fields = [int(value) for value in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
-    idle = fields[3] + fields[4]  # idle, iowait
-    return sum(fields) - idle, sum(fields)
 
 
 def run_suite(workers: str, pytest_args: list[str], record: Path) -> tuple[float, float, int]:

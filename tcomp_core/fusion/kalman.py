@@ -119,11 +119,16 @@ class ForwardPass:
     initial_covariance: NDArray[np.float64] | None = None
 
 
-def _whiten(values: NDArray[np.float64], covariance: NDArray[np.float64]) -> NDArray:
-    """``L⁻¹ values`` for ``covariance = L Lᵀ`` (2×2), values of shape (2, ...)."""
+def _cholesky(covariance: NDArray[np.float64]) -> tuple[float, float, float]:
+    """L[0, 0], L[1, 0], L[1, 1] of ``covariance = L Lᵀ`` (2×2)."""
     l00 = math.sqrt(covariance[0, 0])
     l10 = covariance[1, 0] / l00
-    l11 = math.sqrt(covariance[1, 1] - l10**2)
+    return l00, l10, math.sqrt(covariance[1, 1] - l10**2)
+
+
+def _whiten(values: NDArray[np.float64], covariance: NDArray[np.float64]) -> NDArray:
+    """``L⁻¹ values`` for ``covariance = L Lᵀ`` (2×2), values of shape (2, ...)."""
+    l00, l10, l11 = _cholesky(covariance)
     first = values[0] / l00
     return np.stack((first, (values[1] - l10 * first) / l11))
 
@@ -268,7 +273,7 @@ def _modal_log_likelihood(
     drive = inverse[kept] @ (space.transition @ gains.gain)
     read = vectors[-2:][:, kept] * weight
     whitened, sum_of_squares = modal_innovations(
-        eigenvalues[kept], drive, read, y, gains.innovation
+        eigenvalues[kept], drive, read, y, _cholesky(gains.innovation)
     )
     eigen = (eigenvalues, vectors, condition)
     return _profile_log_likelihood(gains, whitened, sum_of_squares, eigen)[0]

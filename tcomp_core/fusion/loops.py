@@ -221,7 +221,7 @@ def modal_innovations(
     drive: NDArray[Any],
     read: NDArray[Any],
     y: NDArray[np.float64],
-    innovation: NDArray[np.float64],
+    cholesky: tuple[float, float, float],
 ) -> tuple[NDArray[np.float64], float]:
     """Whitened innovations of a steady-state filter run mode by mode from a zero state.
 
@@ -240,8 +240,8 @@ def modal_innovations(
         The sensors' rows of V for those modes, doubled for a conjugate pair.
     y : ndarray, shape (2, N)
         Readings (less their level), degrees C.
-    innovation : ndarray, shape (2, 2)
-        Innovation covariance, °C².
+    cholesky : (float, float, float)
+        L[0, 0], L[1, 0], L[1, 1] of the innovation covariance's Cholesky factor L, °C.
 
     Returns
     -------
@@ -250,9 +250,7 @@ def modal_innovations(
     total : float
         Their sum of squares.
     """
-    l00 = math.sqrt(innovation[0, 0])
-    l10 = innovation[1, 0] / l00
-    l11 = math.sqrt(innovation[1, 1] - l10**2)
+    l00, l10, l11 = cholesky
     whitened = np.empty(y.shape)
     total = _kernels()[1](
         np.ascontiguousarray(poles, dtype=np.complex128),
