@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..validation import check_pair
 from .consistency import ConsistencyCheck
 from .kalman import SteadyState, steady_state
+from .loops import exact_schedule
 from .recursion import ModalRecursion
 from .signal_model import FusionModel, StateSpace
 
@@ -75,38 +76,25 @@ class ExactSchedule:
     @classmethod
     def of(cls, space: StateSpace, target: NDArray[np.float64]) -> ExactSchedule:
         """Run the covariance recursion until the gain is within tolerance of ``target``."""
-        f, noise, covariance = space.transition, space.noise, space.covariance
-        c = space.output
         tolerance = GAIN_TOLERANCE * float(np.max(np.abs(target)))
-        predicted = np.diag(space.prior_std**2)
-        identity = np.eye(f.shape[0])
-        gains, stds, inverses, log_dets, predicted_var = [], [], [], [], [float(c @ predicted @ c)]
-        for _ in range(MAX_EXACT_SAMPLES):
-            (s00, s01), (s10, s11) = predicted[-2:, -2:] + noise
-            determinant = s00 * s11 - s01 * s10
-            inverse = np.array([[s11, -s01], [-s10, s00]]) / determinant
-            gain = predicted[:, -2:] @ inverse
-            update = identity.copy()
-            update[:, -2:] -= gain
-            filtered = update @ predicted @ update.T + gain @ noise @ gain.T  # Joseph form
-            predicted = f @ filtered @ f.T + covariance
-            predicted = 0.5 * (predicted + predicted.T)
-            gains.append(gain)
-            stds.append(math.sqrt(max(float(c @ filtered @ c), 0.0)))
-            inverses.append(inverse)
-            log_dets.append(math.log(determinant))
-            predicted_var.append(float(c @ predicted @ c))
-            if np.abs(gain - target).max() <= tolerance:
-                break
-        gains_array = np.array(gains)
+        gains, std, inverse, log_det, predicted_var = exact_schedule(
+            space.transition,
+            space.covariance,
+            space.noise,
+            space.output,
+            np.diag(space.prior_std**2),
+            target,
+            tolerance,
+            MAX_EXACT_SAMPLES,
+        )
         return cls(
-            gains_array,
-            np.array(stds),
-            np.array(inverses),
-            np.array(log_dets),
-            np.array(predicted_var),
-            np.einsum("ij,kjl->kil", f, gains_array),
-            np.einsum("i,kil->kl", c, gains_array),
+            gains,
+            std,
+            inverse,
+            log_det,
+            predicted_var,
+            np.einsum("ij,kjl->kil", space.transition, gains),
+            np.einsum("i,kil->kl", space.output, gains),
         )
 
     @property
