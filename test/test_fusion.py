@@ -17,7 +17,10 @@ from tcomp_core.fusion import (
     fuse,
     linear_recursion,
 )
+from tcomp_core.fusion import smoother as smoother_module
 from tcomp_core.fusion.fitting import AR_ORDERS, AUTO_MODELS
+from tcomp_core.fusion.kalman import steady_state
+from tcomp_core.fusion.recursion import decay_horizon
 from tcomp_core.metrics import reconstruction_error_percent
 from tcomp_core.reconstruct import reconstruct
 
@@ -210,6 +213,62 @@ def test_steady_state_smoother_matches_the_exact_smoother(kind, model, monkeypat
     assert np.max(np.abs(result.gas[:-1] - gas)[interior] / std[interior]) < 1e-3
     assert np.max(np.abs(result.gas[:-1] - gas) / std) < 0.3  # the first samples differ a bit
     np.testing.assert_allclose(result.std[:-1][interior], std[interior], rtol=1e-3)
+
+
+def start_terms_by_loops(gains, space, smoother, blend, count):
+    """Reference for the smoother's initial-state terms: every S_k as a matrix product."""
+    closed, c = gains.closed_loop, space.output
+    n = closed.shape[0]
+    length = decay_horizon(closed, count)
+    update = np.eye(n) - gains.gain @ space.observation
+    powers = [np.eye(n)]
+    for _ in range(length - 1):
+        powers.append(closed @ powers[-1])
+    output = np.empty((length, n))
+    state = np.zeros((n, n)) if length < count else update @ powers[-1]
+    output[-1] = c @ state
+    for k in range(length - 1 if length < count else length - 2, -1, -1):
+        state = smoother @ state + blend @ update @ powers[k]
+        output[k] = c @ state
+    return np.array(powers), output
+
+
+@pytest.mark.parametrize("ill_conditioned", [False, True])
+@pytest.mark.parametrize(
+    ("kind", "model", "duration"),
+    [
+        ("exhaust", "autoregressive", 2.0),  # 27 states, the response lasts the record
+        ("ramp", "autoregressive", 4.0),  # dies out before the end
+        ("sinusoid", "periodic", 1.0),
+        ("multisine", "band-limited", 2.0),
+    ],
+)
+def test_the_smoothers_initial_state_terms_are_the_matrix_recursion(
+    kind, model, duration, ill_conditioned, monkeypatch
+):
+    """What x_0 does to the predictions (A^k x_0) and to the smoothed gas (c S_k), by modes
+    or (eigenvectors too ill-conditioned) by matrix powers, against plain matrix products."""
+    if ill_conditioned:
+        monkeypatch.setattr(smoother_module, "MAX_EIGENVECTOR_CONDITION", 0.0)
+    pair = make_pair(kind, duration=duration, noise_percent=1.0, seed=5)
+    result = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model=model)
+    space = result.model.state_space()
+    gains = steady_state(space)
+    f = space.transition
+    smoother = gains.filtered @ np.linalg.solve(gains.predicted, f).T
+    blend = np.eye(f.shape[0]) - smoother @ f
+    initial = np.random.default_rng(1).standard_normal(f.shape[0])
+    response, output = smoother_module._start_terms(
+        gains, space.observation, space.output, smoother, blend, initial, pair.tc1.size
+    )
+    powers, expected = start_terms_by_loops(gains, space, smoother, blend, pair.tc1.size)
+    expected_response = (powers @ initial).T
+    assert response.shape == expected_response.shape and output.shape == expected.shape
+    # Rounding grows with the eigenvectors' condition (up to ~1e4 here) in either method.
+    scale = np.max(np.abs(expected))
+    assert np.max(np.abs(output - expected)) <= 1e-7 * scale
+    scale = np.max(np.abs(expected_response))
+    assert np.max(np.abs(response - expected_response)) <= 1e-7 * scale
 
 
 @functools.lru_cache(maxsize=1)

@@ -8,12 +8,20 @@ the model (:func:`~tcomp_core.fusion.consistency.widen_smoothed`).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
 from .consistency import widen_smoothed
 from .kalman import ForwardPass, SteadyState, forward_pass, steady_state
-from .recursion import apply_matrix, decay_horizon, linear_recursion, matrix_powers
+from .recursion import (
+    MAX_EIGENVECTOR_CONDITION,
+    apply_matrix,
+    decay_horizon,
+    linear_recursion,
+    matrix_powers,
+)
 from .signal_model import FusionModel, StateSpace
 
 __all__ = ["COVARIANCE_TOLERANCE", "smoothed_gas"]
@@ -38,24 +46,95 @@ def _smooth(
     count = forward.innovations.shape[1]
     predicted = forward.predicted[:, :-1].copy()
     innovations = forward.innovations.copy()
-    if forward.initial is not None:
-        response = matrix_powers(gains.closed_loop, decay_horizon(gains.closed_loop, count))
-        length = response.shape[1]
-        correction = np.einsum("ikj,j->ik", response, forward.initial)
-        predicted[:, :length] += correction
-        innovations[:, :length] -= correction[-2:]
-    filtered = predicted + apply_matrix(gains.gain, innovations)
     smoother = gains.filtered @ np.linalg.solve(gains.predicted, f).T
     blend = identity - smoother @ f
+    start = None
+    if forward.initial is not None:
+        start = _start_terms(gains, h, c, smoother, blend, forward.initial, count)
+        length = start[0].shape[1]
+        predicted[:, :length] += start[0]
+        innovations[:, :length] -= start[0][-2:]
+    filtered = predicted + apply_matrix(gains.gain, innovations)
     states = _backward(smoother, blend, filtered[:, :, None])[:, :, 0]
     variances = _smoothed_variances(gains, smoother, c, count)
-    if forward.initial is not None and forward.initial_covariance is not None:
-        sensitivity = apply_matrix(identity - gains.gain @ h, response)
-        if length < count:  # the response has died out: start from zero there
-            sensitivity = np.concatenate((sensitivity, np.zeros_like(sensitivity[:, :1])), 1)
-        output = np.einsum("i,ikj->kj", c, _backward(smoother, blend, sensitivity))[:length]
+    if start is not None and forward.initial_covariance is not None:
+        output = start[1]
         variances[:length] += np.einsum("ki,ij,kj->k", output, forward.initial_covariance, output)
     return states, variances, innovations
+
+
+def _start_terms(
+    gains: SteadyState,
+    h: NDArray[np.float64],
+    c: NDArray[np.float64],
+    smoother: NDArray[np.float64],
+    blend: NDArray[np.float64],
+    initial: NDArray[np.float64],
+    count: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """What the initial state x_0 does to the predictions and to the smoothed gas.
+
+    The predictions carry ``A^k x_0`` (A the closed loop) until it dies out after L samples
+    (:func:`~.recursion.decay_horizon`). The filtered states' sensitivity to x_0 is
+    ``s_k = (I − K H) A^k``; the smoothed states' is ``S_k = J S_(k+1) + B s_k`` run back from
+    ``S_L = 0`` (from ``S_(L−1) = s_(L−1)`` when the response lasts the whole record), and the
+    smoothed gas's is the row ``o_k = c S_k``.
+
+    Returns
+    -------
+    response : ndarray, shape (n, L)
+        ``A^k x_0``.
+    output : ndarray, shape (L, n)
+        ``o_k``.
+    """
+    closed = gains.closed_loop
+    n = closed.shape[0]
+    length = decay_horizon(closed, count)
+    update = np.eye(n) - gains.gain @ h
+    eigenvalues, vectors = np.linalg.eig(closed)
+    if np.linalg.cond(vectors) > MAX_EIGENVECTOR_CONDITION:
+        return _start_terms_by_powers(closed, update, c, smoother, blend, initial, length, count)
+    inverse = np.linalg.inv(vectors)
+    powers: NDArray[Any] = eigenvalues[:, None] ** np.arange(length)  # λ_i^k, (n, L)
+    response = (vectors @ (powers * (inverse @ initial)[:, None])).real
+    # With A^j = V Λ^j V⁻¹ and g_m = c J^m: o_k = Σ_(j ≥ k) g_(j−k) B (I − K H) A^j
+    # = [λ^k ∘ Σ_(m ≤ p) (g_m B (I − K H) V) ∘ λ^m] V⁻¹: a cumulative sum over m per mode,
+    # O(n² L) where forming S_k takes O(n³ L).
+    rows = np.empty((length, n))  # g_m
+    rows[0] = c
+    if length > 1:
+        later = linear_recursion(smoother.T, np.zeros((n, length - 1, 1)), c[:, None])
+        rows[1:] = later[:, :, 0].T
+    terms = (rows @ (blend @ update @ vectors)) * powers.T  # (L, n)
+    sums = np.cumsum(terms, axis=0)  # sums[p] = Σ_(m ≤ p)
+    # The sum for o_k runs to p = L − 1 − k, or to L − 2 − k before the terminal term.
+    last = length - 1 if length < count else length - 2
+    reach = last - np.arange(length)
+    modal = np.where(reach[:, None] >= 0, sums[np.maximum(reach, 0)], 0.0)
+    output: NDArray[np.complex128] = (powers.T * modal) @ inverse
+    if length == count:  # the record ends first: S_(L−1) = s_(L−1), no blend
+        tail = update @ (vectors * powers[:, -1]) @ inverse  # (I − K H) A^(L−1)
+        output = output + rows[::-1] @ tail
+    return response, np.asarray(output.real, dtype=np.float64)
+
+
+def _start_terms_by_powers(
+    closed: NDArray[np.float64],
+    update: NDArray[np.float64],
+    c: NDArray[np.float64],
+    smoother: NDArray[np.float64],
+    blend: NDArray[np.float64],
+    initial: NDArray[np.float64],
+    length: int,
+    count: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_start_terms` from the matrix powers themselves, for an ill-conditioned V."""
+    response = matrix_powers(closed, length)  # (n, L, n)
+    sensitivity = apply_matrix(update, response)
+    if length < count:  # the response has died out: start from zero there
+        sensitivity = np.concatenate((sensitivity, np.zeros_like(sensitivity[:, :1])), 1)
+    output = np.einsum("i,ikj->kj", c, _backward(smoother, blend, sensitivity))[:length]
+    return np.einsum("ikj,j->ik", response, initial), output
 
 
 def _backward(
