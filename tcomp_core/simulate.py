@@ -70,8 +70,19 @@ def multisine(
     freqs = np.geomspace(f_min_hz, f_max_hz, n_tones)
     k = np.arange(1, n_tones + 1)
     phases = -np.pi * k * (k - 1) / n_tones
-    tones = np.sin(2.0 * np.pi * freqs[:, None] * t[None, :] + phases[:, None]).sum(axis=0)
+    times = np.asarray(t, dtype=np.float64)
+    tones = np.empty(times.shape)
+    # In blocks of samples: the whole (tones, N) array of a long record is hundreds of MB
+    # (a million samples took 8 s, most of it paging); each sample's sum is the same.
+    for start in range(0, times.size, _MULTISINE_BLOCK):
+        block = times[start : start + _MULTISINE_BLOCK]
+        angles = 2.0 * np.pi * freqs[:, None] * block[None, :] + phases[:, None]
+        tones[start : start + block.size] = np.sin(angles).sum(axis=0)
     return mean + amplitude * tones / np.max(np.abs(tones))
+
+
+#: Samples per block of :func:`multisine`'s tone sum.
+_MULTISINE_BLOCK = 16384
 
 
 def exhaust_pulses(

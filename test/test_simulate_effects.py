@@ -7,6 +7,7 @@ import pytest
 from scipy import signal
 from scipy.interpolate import CubicSpline
 
+from tcomp_core import simulate as simulate_module
 from tcomp_core.effects import EFFECT_NAMES as LIBRARY_EFFECT_NAMES
 from tcomp_core.models import FirstOrderLag
 from tcomp_core.simulate import gas_signal
@@ -53,6 +54,18 @@ def test_plain_sensors_reach_the_analytic_steady_state_sinusoid():
         expected = 100.0 + 50.0 * np.cos(phase) * np.sin(omega * record.time - phase)
         error = np.abs(reading - expected)[after_transient]
         assert np.max(error) < 1e-5 * 50.0
+
+
+def test_a_long_multisine_is_its_tone_sum_whatever_the_blocks():
+    """Summed in blocks of samples (a long record's whole tone array is hundreds of MB): each
+    sample the same to the bit as the tones summed at once, across the blocks' edges."""
+    time = np.arange(2 * simulate_module._MULTISINE_BLOCK + 7) * 2e-4 + 0.1
+    freqs = np.geomspace(1.0, 100.0, 40)
+    k = np.arange(1, 41)
+    angles = 2.0 * np.pi * freqs[:, None] * time[None, :] - (np.pi * k * (k - 1) / 40)[:, None]
+    tones = np.sin(angles).sum(axis=0)
+    expected = 100.0 + 50.0 * tones / np.max(np.abs(tones))
+    assert np.array_equal(gas_signal("multisine", time), expected)
 
 
 def test_linear_response_matches_lsim():
