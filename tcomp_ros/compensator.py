@@ -62,7 +62,7 @@ from tcomp_core.online.health import format_value as _fmt
 from tcomp_core.parameters import PARAMETERS, ParameterSpec
 from tcomp_core.workers import InlineRunner, ProcessRunner, ThreadRunner
 
-from .spin import LONG_RUN_SLICE_S, spin_until_shutdown
+from .spin import LONG_RUN_SLICE_S, shut_down, spin_until_shutdown
 
 __all__ = ["CompensatorNode", "descriptor", "main"]
 
@@ -481,13 +481,13 @@ def main(args: Sequence[str] | None = None) -> int:
         node = CompensatorNode()
     except (ParameterException, ValueError, TypeError) as exc:  # a bad value given at start
         print(f"compensator_node: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        rclpy.try_shutdown()
+        shut_down()
         return 1
     try:
         spin_until_shutdown(node, timeout_sec=LONG_RUN_SLICE_S)  # weeks: few slices
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        shut_down()
     return 0
 
 

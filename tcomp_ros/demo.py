@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from .compensator import CompensatorNode
     from .replay import ReplayNode
-    from .spin import make_executor
+    from .spin import make_executor, shut_down
 
     record = read_bag(args.bag)
     context = rclpy.context.Context()
@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         executor.shutdown()
         compensator.destroy_node()
         replay.destroy_node()
-        rclpy.try_shutdown(context=context)
+        shut_down(context)
     if last:
         print(
             f"final: tau1 = {last['tau1_s']} s, tau2 = {last['tau2_s']} s, "

@@ -48,7 +48,7 @@ from tcomp_core.errors import DataError, TruncatedInputWarning
 from tcomp_core.io import DEFAULT_TOPICS, read_bag
 from tcomp_core.simulate import SIGNALS, simulate_pair
 
-from .spin import spin_until_shutdown
+from .spin import shut_down, spin_until_shutdown
 
 __all__ = ["ReplayNode", "main"]
 
@@ -256,16 +256,16 @@ def main(args: Sequence[str] | None = None) -> int:
         node = ReplayNode()
     except (DataError, ParameterException, ValueError, TypeError) as exc:  # a bad parameter
         print(f"replay_node: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        rclpy.try_shutdown()
+        shut_down()
         return 1
     except (KeyboardInterrupt, ExternalShutdownException):  # stopped while loading
-        rclpy.try_shutdown()
+        shut_down()
         return 0
     try:
         spin_until_shutdown(node, done=lambda: node.done)
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        shut_down()
     return 0
 
 

@@ -22,8 +22,9 @@ from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
+from rclpy.utilities import get_default_context
 
-__all__ = ["LONG_RUN_SLICE_S", "make_executor", "spin_until_shutdown"]
+__all__ = ["LONG_RUN_SLICE_S", "make_executor", "shut_down", "spin_until_shutdown"]
 
 #: Slice of a process that runs for weeks (the compensator), s: twenty times fewer slices than
 #: the default's, so twenty times less of their memory; ``done()`` is checked between slices.
@@ -70,4 +71,20 @@ def spin_until_shutdown(
         pass
     finally:
         executor.shutdown()
+        shut_down(context)
+
+
+def shut_down(context: Context | None = None) -> None:
+    """``rclpy.try_shutdown``, where a signal's own shutdown racing it is no error.
+
+    rclpy's signal handler shuts the contexts down from its own thread, without the lock
+    ``try_shutdown`` checks under: when it lands between that check and the shutdown, rcl
+    refuses the second one (ros2/rclpy#1352: ``RCLError: rcl_shutdown already called``) and a
+    node stopped by Ctrl-C or SIGTERM exited with a traceback and status 1. The context being
+    down is all that was asked; any other failure is raised.
+    """
+    try:
         rclpy.try_shutdown(context=context)
+    except RCLError:
+        if (context if context is not None else get_default_context()).ok():
+            raise
