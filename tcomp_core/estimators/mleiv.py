@@ -69,6 +69,7 @@ from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
 from .gauss_newton import SearchResult, levenberg_marquardt
+from .projection import projected_residual
 from .result import Estimate, estimate_from_poles
 from .toeplitz import ToeplitzWhitening
 
@@ -292,11 +293,14 @@ class _CrossRelation:
         projection: the whitened residual minus its projection on the whitened constant).
         The squared norm is J plus the prior's term, minimised over b.
         """
-        whitened, constant = self._whitened_with_constant(x)
-        offset = float((constant @ whitened) / (constant @ constant))
-        self._offsets[np.asarray(x, dtype=np.float64).tobytes()] = offset
+        c1, c2 = self.gains(x)
+        h = float(x[2])
         result = np.empty(self.rows + 1)
-        np.subtract(whitened, constant * offset, out=result[:-1])
+        # One compiled pass: e, its whitening, the constant's and the projection.
+        offset = projected_residual(
+            self._data, (c1, -(1.0 + h) * c2, -h), self._whitening(x), result
+        )
+        self._offsets[np.asarray(x, dtype=np.float64).tobytes()] = offset
         result[-1] = self.gain_weight * x[2]
         return result
 
