@@ -4,8 +4,8 @@ A signal model's maximum-likelihood fit (:mod:`tcomp_core.fusion.fitting`) evalu
 innovation likelihood a few hundred times on a few thousand samples. As numpy and scipy calls an
 evaluation took about 2 ms, most of it per-call overhead: scipy's Riccati solver validates,
 balances and orders a QZ decomposition of a pencil twice the state's size, and the filter ran
-one ``lfilter`` per mode and another per eigenvalue. Here those three are loops compiled by
-:func:`tcomp_core.compiled.compile_loops`:
+one ``lfilter`` per mode and another per eigenvalue. Here they are loops compiled by
+:func:`tcomp_core.compiled.compile_loops`, with a fourth for the causal filter:
 
 * the steady-state Riccati equation by the structure-preserving doubling algorithm;
 * the steady-state filter's whitened innovations, mode by mode in the closed loop's eigenbasis;
