@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..compiled import compile_loops
-from .toeplitz import _DIRECT_EXPONENT, _POWER_BLOCK, ToeplitzWhitening
+from .toeplitz import _POWER_BLOCK, ToeplitzWhitening, direct_powers
 
 __all__ = ["projected_residual"]
 
@@ -116,8 +116,7 @@ def projected_residual(
         b, degrees C (in the residual's units).
     """
     log_s = whitening.log_s
-    count = whitening.size + 2
-    direct = count if log_s >= 0.0 else min(count, math.ceil(_DIRECT_EXPONENT / -log_s))
+    direct = direct_powers(log_s, whitening.size + 2)
     c1, c2, c3 = coefficients
     return float(
         _kernel()(

@@ -32,7 +32,7 @@ from scipy.signal import lfilter
 
 from ..errors import EstimationError
 
-__all__ = ["ToeplitzWhitening", "powers_minus_one"]
+__all__ = ["ToeplitzWhitening", "direct_powers", "powers_minus_one"]
 
 #: s^n - 1 is computed directly (``expm1``) below this |n log s|, where the difference would
 #: lose digits, and from the product of two powers above it.
@@ -45,6 +45,11 @@ _POWER_BLOCK = 64
 _LOG_SMALLEST = math.log(sys.float_info.min)
 
 
+def direct_powers(log_s: float, count: int) -> int:
+    """How many of s^n - 1 (n = 1 .. count) :func:`powers_minus_one` takes by ``expm1``."""
+    return count if log_s >= 0.0 else min(count, math.ceil(_DIRECT_EXPONENT / -log_s))
+
+
 def powers_minus_one(log_s: float, count: int) -> NDArray[np.float64]:
     """s^n - 1 for n = 1 .. count, shape (count,), s = exp(log_s) ≤ 1.
 
@@ -55,7 +60,7 @@ def powers_minus_one(log_s: float, count: int) -> NDArray[np.float64]:
     place.
     """
     exponents = np.arange(1.0, count + 1.0)
-    direct = count if log_s >= 0.0 else min(count, math.ceil(_DIRECT_EXPONENT / -log_s))
+    direct = direct_powers(log_s, count)
     if direct >= count:
         return np.expm1(exponents * log_s)
     result = np.empty(count)
