@@ -35,14 +35,15 @@ and K = 4 % its τ1 scatters about three times as much.
 Σ is tridiagonal Toeplitz, so the whitened residual L⁻¹e (Σ = LLᵀ) has a closed form that
 costs one first-order recursive filter (:meth:`_CrossRelation.whiten`);
 :func:`scipy.optimize.least_squares` minimises the squared norm of the projected residual over
-(log τ1, log τ2, g - 1). The asymptotic covariance of these is σ̂² (JᵀJ)⁻¹ with J the
-Jacobian of the projected residual (the prior's row included) and σ̂² = J_min/(N - 5). The
-regressors ΔT_mi are noisy, so XᵀΣ⁻¹X (X = ∂e/∂c) overstates the information; JᵀJ, which also
-carries the derivative of the whitening, matched the noise-corrected X_Sᵀ Σ⁻¹ X_S (clean
-regressors) within 0.2 % in Monte Carlo checks. The fourth-order noise term of the score's
-variance, computed in the frequency domain, stays below 1 % of the variance up to K = 12 % at
-the paper's conditions, so no sandwich correction is applied. Monte Carlo coverage of the
-95 % intervals: see ``bench/bench_accuracy.py``.
+(log τ1, log τ2, g - 1). Their covariance is the sandwich H⁻¹(σ̂² H + V₄)H⁻¹ of
+:mod:`.eiv_noise`, with σ̂² = J_min/(N - 5), J the Jacobian of the projected residual (the
+prior's row included), H = JᵀJ less the information the noise in the regressors ΔT_mi adds to
+it, and V₄ the score's fourth-order noise variance. At the paper's conditions both corrections
+are below 1 % (JᵀJ matched the clean regressors' X_Sᵀ Σ⁻¹ X_S within 0.2 % in Monte Carlo
+checks) and the covariance is σ̂² (JᵀJ)⁻¹; on a signal too slow to excite the sensors the
+noise makes most of JᵀJ, and σ̂² (JᵀJ)⁻¹ put the intervals 2–10 times too narrow. Monte Carlo
+coverage of the 95 % intervals: ``bench/bench_accuracy.py``,
+``test/test_mleiv_noise_information.py``.
 
 Two consequences of weighting by the noise spectrum. A pre-filter applied to both signals
 leaves the noise term tr(Σ⁻¹ F Σ Fᵀ) ≈ tr(FᵀF) independent of c, so the estimate stays
@@ -68,6 +69,7 @@ from ..filters import decimate
 from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
+from .eiv_noise import noise_moments, sandwich_covariance
 from .gauss_newton import SearchResult, levenberg_marquardt
 from .projection import projected_residual
 from .result import Estimate, estimate_from_poles
@@ -280,6 +282,31 @@ class _CrossRelation:
         )
         off_diagonal = -(self.phi * (c1 * c1 - c1) + gain2 * (c2 * c2 - c2))
         return float(diagonal), float(off_diagonal)
+
+    def noise_responses(
+        self, x: NDArray[np.float64], omega: NDArray[np.float64]
+    ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """How each reading's white noise reaches the whitened residual, at ω (rad per sample).
+
+        The noise of e is n1 read through c1 z - (c1 - 1) and n2 through -g (c2 z - (c2 - 1))
+        (z the advance); the whitening is, away from the record's start, the causal filter
+        1/(√r1 (1 - s z⁻¹)) of :class:`~.toeplitz.ToeplitzWhitening` (Σ(z) = r1 (1 - s z⁻¹)
+        (1 - s z)). tc1's response is scaled by √φ, its noise σ relative to tc2's.
+
+        Returns
+        -------
+        tc1, tc2 : ndarray of complex, shape (K,) each
+        """
+        c1, c2 = self.gains(x)
+        gain = 1.0 + float(x[2])
+        diagonal, off_diagonal = self.covariance_bands(x)
+        root = math.sqrt((self.phi + gain**2) * (diagonal - 2.0 * off_diagonal))
+        r1 = 0.5 * (diagonal + root)
+        advance = np.exp(1j * omega)
+        whitening = 1.0 / (math.sqrt(r1) * (1.0 + (off_diagonal / r1) / advance))
+        first = math.sqrt(self.phi) * whitening * (c1 * advance - (c1 - 1.0))
+        second = -gain * whitening * (c2 * advance - (c2 - 1.0))
+        return first, second
 
     def whitened(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """L⁻¹ e with Σ = LLᵀ (Cholesky), shape (M,), in units of σ2 (see :meth:`whiten`)."""
@@ -678,6 +705,27 @@ def _disagreement_message(problem: _CrossRelation, x: NDArray[np.float64], what:
 _LARGEST_LOG_SPREAD = 700.0
 
 
+def _covariance(
+    problem: _CrossRelation,
+    x: NDArray[np.float64],
+    jacobian: NDArray[np.float64],
+    noise_variance: float,
+) -> NDArray[np.float64]:
+    """Covariance of x = (log τ1, log τ2, h), the noise's share of JᵀJ taken out.
+
+    The sandwich of :mod:`.eiv_noise` at the fit's x and σ̂².
+
+    Raises
+    ------
+    NoExcitationError
+        If the noise accounts for all the information on some direction of x.
+    """
+    noise_information, fourth = noise_moments(
+        problem.noise_responses, x, noise_variance, problem.rows, float(max(problem.gains(x)))
+    )
+    return sandwich_covariance(jacobian.T @ jacobian, noise_information, fourth, noise_variance)
+
+
 def _interval_params(tau: NDArray[np.float64], covariance: NDArray) -> dict[str, float]:
     """Standard errors (delta method, s) and 95 % intervals (exp of the log-τ interval, s)."""
     se_log = np.sqrt(np.diag(covariance))
@@ -774,7 +822,7 @@ def ml_eiv(
         rival = _gain_rival(problem, fit.x, length)
         if rival is not None:
             raise EstimationError(_gain_rival_message(problem, fit.x, rival, length))
-    covariance = noise_variance * np.linalg.inv(jacobian.T @ jacobian)
+    covariance = _covariance(problem, fit.x, jacobian, noise_variance)
     se_log = np.sqrt(np.diag(covariance)[:2])
     if not np.all(_Z * se_log < _LARGEST_LOG_SPREAD):
         # The τ columns alone pass the condition check, but with the level and gain fitted
