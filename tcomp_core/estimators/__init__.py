@@ -185,7 +185,7 @@ def estimate(
     ratio = phi  # the closure below needs it bound as a float
 
     def fit(a: NDArray[np.float64], b: NDArray[np.float64], warm: tuple[float, ...] | None):
-        return _dispatch(a, b, dt, method, ratio, alpha, warm)
+        return _dispatch(a, b, dt, method, ratio, alpha, warm, prefilter_hz)
 
     def refit(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, float]:
         found = fit(a, b, start)
@@ -225,7 +225,9 @@ def estimate(
             measured = False
         else:
             if abs(math.log(refined / phi)) > PHI_REFIT_TOLERANCE:
-                result = _dispatch(first, second, dt, method, refined, alpha, warm_start(result))
+                result = _dispatch(
+                    first, second, dt, method, refined, alpha, warm_start(result), prefilter_hz
+                )
     if measured:
         result = replace(result, params={**result.params, "phi_estimated": 1.0}, lines=lines)
     if prefilter_hz is None:
@@ -249,8 +251,9 @@ def _dispatch(
     phi: float,
     alpha: float | None,
     start: tuple[float, ...] | None,
+    prefilter_hz: float | None = None,
 ) -> Estimate:
-    """Run ``method`` on validated signals."""
+    """Run ``method`` on validated signals (pre-filtered at ``prefilter_hz`` when given)."""
     if method == "tdr-kee":
         return tdr_kee(first, second, dt, alpha)
     if method == "gamma-ls":
@@ -262,5 +265,5 @@ def _dispatch(
     if method == "beta-tls":
         return beta_tls(first, second, dt)
     if method == "ml-eiv":
-        return ml_eiv(first, second, dt, phi, start=start)
+        return ml_eiv(first, second, dt, phi, start=start, prefilter_hz=prefilter_hz)
     return beta_gtls(first, second, dt, phi)

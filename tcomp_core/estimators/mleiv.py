@@ -62,10 +62,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import signal
 from scipy.optimize import least_squares
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
-from ..filters import decimate
+from ..filters import PREFILTER_ORDER, decimate, lowpass_sos
 from ..noise import estimate_noise, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
@@ -710,20 +711,36 @@ def _covariance(
     x: NDArray[np.float64],
     jacobian: NDArray[np.float64],
     noise_variance: float,
+    prefilter_hz: float | None = None,
 ) -> NDArray[np.float64]:
     """Covariance of x = (log τ1, log τ2, h), the noise's share of JᵀJ taken out.
 
-    The sandwich of :mod:`.eiv_noise` at the fit's x and σ̂².
+    The sandwich of :mod:`.eiv_noise` at the fit's x and σ̂². With the readings pre-filtered
+    (:func:`~tcomp_core.filters.prefilter` at ``prefilter_hz``) the residual's noise is no
+    longer white: the noise terms carry the filter's response.
 
     Raises
     ------
     NoExcitationError
         If the noise accounts for all the information on some direction of x.
     """
-    noise_information, fourth = noise_moments(
-        problem.noise_responses, x, noise_variance, problem.rows, float(max(problem.gains(x)))
+    response = None
+    if prefilter_hz is not None:
+        sos = lowpass_sos(prefilter_hz, problem.dt, PREFILTER_ORDER)
+
+        def response(omega: NDArray[np.float64]) -> NDArray[np.float64]:
+            # sosfiltfilt's response: |H|² of the sections, real and non-negative.
+            return np.abs(signal.sosfreqz(sos, worN=omega)[1]) ** 2
+
+    moments = noise_moments(
+        problem.noise_responses,
+        x,
+        noise_variance,
+        problem.rows,
+        float(max(problem.gains(x))),
+        response,
     )
-    return sandwich_covariance(jacobian.T @ jacobian, noise_information, fourth, noise_variance)
+    return sandwich_covariance(jacobian.T @ jacobian, moments)
 
 
 def _interval_params(tau: NDArray[np.float64], covariance: NDArray) -> dict[str, float]:
@@ -745,6 +762,7 @@ def ml_eiv(
     phi: float | None = None,
     *,
     start: tuple[float, ...] | None = None,
+    prefilter_hz: float | None = None,
 ) -> Estimate:
     """ML errors-in-variables estimate: minimise J = eᵀ Σ⁻¹ e + (w h)² over τ1, τ2, g, b.
 
@@ -762,6 +780,10 @@ def ml_eiv(
         Time constants τ1, τ2 (s) to start the search from, e.g. the previous window's (a warm
         start), and the gain g (tc1's reading per degree of tc2's, 1 when left out); by
         default β-GTLS with the same φ, or a log-spaced grid when β-GTLS fails.
+    prefilter_hz : float, optional
+        The cut-off of the zero-phase pre-filter (:func:`~tcomp_core.filters.prefilter`) the
+        readings went through, Hz: the intervals then account for the noise it colours. It
+        does not change τ.
 
     Returns
     -------
@@ -822,7 +844,7 @@ def ml_eiv(
         rival = _gain_rival(problem, fit.x, length)
         if rival is not None:
             raise EstimationError(_gain_rival_message(problem, fit.x, rival, length))
-    covariance = _covariance(problem, fit.x, jacobian, noise_variance)
+    covariance = _covariance(problem, fit.x, jacobian, noise_variance, prefilter_hz)
     se_log = np.sqrt(np.diag(covariance)[:2])
     if not np.all(_Z * se_log < _LARGEST_LOG_SPREAD):
         # The τ columns alone pass the condition check, but with the level and gain fitted
