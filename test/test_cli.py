@@ -1,4 +1,5 @@
 import json
+import re
 import subprocess
 import sys
 
@@ -6,7 +7,8 @@ import numpy as np
 import pytest
 
 from tcomp_core.cli import build_parser, main
-from tcomp_core.io import read_record
+from tcomp_core.io import read_record, write_csv
+from tcomp_core.simulate import simulate_pair
 
 VERBS = [
     "simulate",
@@ -73,6 +75,28 @@ def test_estimate_all_methods_table(simulated, capsys):
     out = capsys.readouterr().out
     for method in ["tdr-kee", "gamma-ls", "gamma-tls", "beta-ls", "beta-tls", "beta-gtls"]:
         assert method in out
+
+
+def test_estimate_says_when_the_data_do_not_pin_tau_down(simulated, tmp_path, capsys):
+    """A 0.5 Hz sine seen by sensors of 20 and 100 ms: its τ1 interval spans far beyond ±20 %."""
+    pair = simulate_pair(
+        "sinusoid",
+        tau1=0.02,
+        tau2=0.1,
+        dt=0.002,
+        duration=8.0,
+        noise_percent=2.0,
+        seed=6,
+        signal_params={"freq_hz": 0.5},
+    )
+    slow = write_csv(tmp_path / "slow.csv", pair.time, pair.tc1, pair.tc2)
+    capsys.readouterr()
+    assert main(["estimate", str(slow)]) == 0
+    out = capsys.readouterr().out
+    said = r"ml-eiv: tau1's 95 % interval \S+ \.\. \S+ s is wider than \+-20 %"
+    assert re.search(said, out), out
+    assert main(["estimate", str(simulated[0])]) == 0  # a ramp pins both down
+    assert "do not pin it down" not in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("suffix", ["gas.csv", "gas_bag"])

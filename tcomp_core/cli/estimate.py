@@ -74,4 +74,10 @@ def run(args: argparse.Namespace) -> int:
         print(_row(result))
     for method, text in failures.items():
         print(f"{method:<10} failed: {text}")
+    for result in results:
+        if wide := result.wide_interval():
+            print(
+                f"{result.method}: {wide}: these data do not pin it down (the node and "
+                "tcomp process refuse such a window and keep the last tau they accepted)"
+            )
     return 0

@@ -9,7 +9,11 @@ from typing import Any
 from ..lines import ForeignLine
 from ..models import pole_to_tau
 
-__all__ = ["Estimate", "estimate_from_poles"]
+__all__ = ["MAX_TAU_INTERVAL", "Estimate", "estimate_from_poles"]
+
+#: Largest half-width of an estimate's 95 % interval of τ1 or τ2, relative to it, for the data
+#: to pin the time constant down (the online engine accepts no estimate beyond it).
+MAX_TAU_INTERVAL = 0.2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,6 +84,22 @@ class Estimate:
     def b2(self) -> float:
         """Input gain 1 - a2 of thermocouple 2's difference equation (Eq. 6)."""
         return 1.0 - self.a2
+
+    def wide_interval(self, limit: float = MAX_TAU_INTERVAL) -> str:
+        """The first τ whose 95 % interval's half-width exceeds ``limit`` of it, said; or ''.
+
+        Estimators without intervals (``params`` without ``tau1_ci_low``) give ''.
+        """
+        for i, tau in enumerate((self.tau1, self.tau2), start=1):
+            low = self.params.get(f"tau{i}_ci_low", math.nan)
+            high = self.params.get(f"tau{i}_ci_high", math.nan)
+            half = 0.5 * (high - low) / tau
+            if math.isfinite(half) and half > limit:
+                return (
+                    f"tau{i}'s 95 % interval {low:.4g} .. {high:.4g} s is wider than "
+                    f"+-{100 * limit:g} %"
+                )
+        return ""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON dictionary of the estimate, with α added."""

@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..compensation import OutputModel
 from ..errors import DataError
+from ..estimators.result import MAX_TAU_INTERVAL
 from ..fusion import FusionModel
 from ..validation import MIN_SAMPLES
 from ..workers import InlineRunner, JobRunner
@@ -61,9 +62,6 @@ __all__ = ["FIRST_AGREEMENT", "MAX_TAU_INTERVAL", "RECENT_S", "OnlineCompensator
 _Run = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray, NDArray]
 _Pairs = tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
 
-#: Largest half-width of an estimate's 95 % interval of τ1 or τ2, relative to it, for the
-#: estimate to be accepted (convention: act only on what the data pin down).
-MAX_TAU_INTERVAL = 0.2
 #: An estimator without intervals: its first estimate is accepted only within this relative
 #: distance of the attempt before it (on a shorter window).
 FIRST_AGREEMENT = 0.1
@@ -887,17 +885,8 @@ class OnlineCompensator:
         estimate = status.estimate
         assert estimate is not None
         taus = (estimate.tau1, estimate.tau2)
-        reason = ""
-        for i, tau in enumerate(taus, start=1):
-            low = estimate.params.get(f"tau{i}_ci_low", math.nan)
-            high = estimate.params.get(f"tau{i}_ci_high", math.nan)
-            half = 0.5 * (high - low) / tau
-            if math.isfinite(half) and half > MAX_TAU_INTERVAL:
-                reason = (
-                    f"tau{i}'s 95 % interval {low:.4g} .. {high:.4g} s is wider than "
-                    f"+-{100 * MAX_TAU_INTERVAL:g} %: the window does not pin it down"
-                )
-                break
+        wide = estimate.wide_interval(MAX_TAU_INTERVAL)
+        reason = f"{wide}: the window does not pin it down" if wide else ""
         previous, self._last_attempt = self._last_attempt, taus
         has_intervals = math.isfinite(estimate.params.get("tau1_ci_low", math.nan))
         confirmed = previous is not None and all(
