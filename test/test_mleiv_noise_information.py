@@ -2,7 +2,7 @@
 
 A slow sine seen by sensors of 20 and 100 ms shows their lags only as a phase and a change of
 amplitude of 1e-3; the noise in the readings' differences then adds most of the Gauss–Newton
-information, and σ²(JᵀJ)⁻¹ put the intervals 2–10 times too narrow (47–95 % of them missed).
+information, and σ²(JᵀJ)⁻¹ put the intervals 2.5–10 times too narrow (47–95 % of them missed).
 """
 
 import math

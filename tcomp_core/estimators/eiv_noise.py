@@ -8,7 +8,7 @@ regressors ΔT_mi adds information that is not there. Where the gas excites the 
 their band the clean part dominates and the two agree to a fraction of a percent; where it
 does not (a slow signal: a sine of 0.05–0.5 Hz seen by sensors of 20 and 100 ms, whose lags
 show only as a phase and a 1e-3 change of amplitude that the gain between the sensors can
-take) the noise part is most of JᵀJ, and the intervals were 3–10 times too narrow: 47–95 % of
+take) the noise part is most of JᵀJ, and the intervals were 2.5–10 times too narrow: 47–95 % of
 them missed the truth.
 
 The criterion's expectation is the clean part plus a constant (the estimator is consistent),

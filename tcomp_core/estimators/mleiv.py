@@ -41,7 +41,7 @@ prior's row included), H = JᵀJ less the information the noise in the regressor
 it, and V₄ the score's fourth-order noise variance. At the paper's conditions both corrections
 are below 1 % (JᵀJ matched the clean regressors' X_Sᵀ Σ⁻¹ X_S within 0.2 % in Monte Carlo
 checks) and the covariance is σ̂² (JᵀJ)⁻¹; on a signal too slow to excite the sensors the
-noise makes most of JᵀJ, and σ̂² (JᵀJ)⁻¹ put the intervals 2–10 times too narrow. Monte Carlo
+noise makes most of JᵀJ, and σ̂² (JᵀJ)⁻¹ put the intervals 2.5–10 times too narrow. Monte Carlo
 coverage of the 95 % intervals: ``bench/bench_accuracy.py``,
 ``test/test_mleiv_noise_information.py``.
 
