@@ -5,9 +5,16 @@ them (Eq. 8) unchanged, so the estimators still apply while out-of-band noise is
 Post-filtering smooths the reconstructed gas temperature, whose noise the inverse model amplifies.
 Both run forward and backward (``sosfiltfilt``, Matlab's ``filtfilt``) so they add no phase lag;
 second-order sections keep high orders at low cut-offs numerically stable.
+
+Near the ends of a record the zero-phase filter reads its padding (the record reflected about
+its end point), which the two sensors' relation does not hold for: the first and last samples
+of a pre-filtered pair carry start-up transients that differ between the sensors.
+:func:`prefilter_pair` leaves them out.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,12 +29,16 @@ __all__ = [
     "lowpass_sos",
     "postfilter",
     "prefilter",
+    "prefilter_pair",
+    "transient_samples",
 ]
 
 #: Order of the post-filter: a fifth-order Butterworth, as in the paper (Sec. IV B).
 POSTFILTER_ORDER = 5
 #: Order of the pre-filter (the paper does not state one; we use the post-filter's).
 PREFILTER_ORDER = 5
+#: A filter's start-up transient counts as gone once its slowest pole has decayed this far.
+TRANSIENT_DECAY = 1e-3
 
 
 def lowpass_sos(cutoff_hz: float, dt: float, order: int) -> NDArray[np.float64]:
@@ -92,6 +103,48 @@ def prefilter(
     ndarray, shape (N,)
     """
     return _zero_phase(values, dt, cutoff_hz, order, "pre-filter input")
+
+
+def transient_samples(cutoff_hz: float, dt: float, order: int = PREFILTER_ORDER) -> int:
+    """Samples at each end where the pre-filter's start-up transient has not decayed, ≥ 1.
+
+    The slowest pole p of the Butterworth sections decays to :data:`TRANSIENT_DECAY` in
+    log(decay)/log|p| samples (90 for 20 Hz at 500 Hz, order 5).
+    """
+    sos = lowpass_sos(cutoff_hz, dt, order)
+    slowest = float(np.max(np.abs(signal.sos2zpk(sos)[1])))
+    return max(1, math.ceil(math.log(TRANSIENT_DECAY) / math.log(slowest)))
+
+
+def prefilter_pair(
+    tc1: ArrayLike, tc2: ArrayLike, dt: float, cutoff_hz: float, order: int = PREFILTER_ORDER
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Both readings pre-filtered (:func:`prefilter`), less the ends the padding disturbs.
+
+    The reflected padding at each end gives each sensor a start-up transient the two sensors'
+    relation does not hold for: on engine pulses at 500 Hz with a 20 Hz pre-filter it bent
+    ml-eiv's τ1 by −1.9 % (three standard errors); without the :func:`transient_samples` at
+    each end, −0.05 % (the sampling spread of the check); on records that start mid-run, as
+    a rig's do, +0.98 → +0.08 % with the same spread.
+
+    Returns
+    -------
+    tc1, tc2 : ndarray, shape (N - 2E,) each
+        E = :func:`transient_samples`.
+
+    Raises
+    ------
+    ValueError
+        If the record is not longer than twice the transient plus the filter's padding.
+    """
+    first, second = prefilter(tc1, dt, cutoff_hz, order), prefilter(tc2, dt, cutoff_hz, order)
+    edge = transient_samples(cutoff_hz, dt, order)
+    if first.size <= 2 * edge + 3 * (order + 1):
+        raise ValueError(
+            f"pre-filter input: {first.size} samples are too few for a {cutoff_hz:g} Hz "
+            f"pre-filter, whose start-up transients take {edge} samples at each end"
+        )
+    return first[edge:-edge], second[edge:-edge]
 
 
 def postfilter(

@@ -20,7 +20,7 @@ from tcomp_core import (
 from tcomp_core.errors import EstimationError
 from tcomp_core.estimators import DEFAULT_METHOD, DIFFERENCE_EQUATION_METHODS, beta_ls
 from tcomp_core.estimators.scatter import equilibrated_condition, solve_gtls
-from tcomp_core.filters import prefilter
+from tcomp_core.filters import prefilter_pair
 from tcomp_core.models import pole_to_tau, tau_to_pole
 from tcomp_core.simulate import SIGNALS
 from tcomp_core.validation import MIN_SAMPLES, check_shared_signal, sample_interval_from_time
@@ -243,18 +243,35 @@ def test_prefilter_noise_free_still_recovers_tau(method, kind):
     assert estimate(pair.tc1, pair.tc2, pair.dt, method).prefilter_hz is None
 
 
+def test_a_pre_filters_start_up_transients_do_not_bend_tau():
+    """The padding at the ends of a zero-phase pre-filter is no reading of the gas: the two
+    sensors' filtered ends disagree, and on engine pulses at 500 Hz a 20 Hz pre-filter put
+    ml-eiv's τ1 1.9 % short (16 records); the ends left out, within the records' spread."""
+    taus = []
+    for seed in range(1000, 1016):
+        pair = make_pair(
+            "exhaust", tau1=0.02, tau2=0.1, dt=0.002, duration=8.0, noise_percent=2.0, seed=seed
+        )
+        found = estimate(pair.tc1, pair.tc2, pair.dt, phi=1.0, prefilter_hz=20.0)
+        taus.append((found.tau1, found.tau2))
+    bias = np.mean(taus, axis=0) / np.array([0.02, 0.1]) - 1.0
+    assert np.all(np.abs(bias) < 0.005), bias  # the mean's own spread: 0.15 % on τ1
+
+
+def test_a_record_too_short_for_the_pre_filters_transients_is_refused():
+    pair = make_pair("ramp", dt=0.002, duration=0.36, seed=1)  # 180 samples
+    with pytest.raises(ValueError, match=r"start-up transients take 90 samples at each end"):
+        estimate(pair.tc1, pair.tc2, pair.dt, prefilter_hz=20.0)
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_prefilter_is_applied_to_both_signals(method):
     pair = make_pair("ramp", noise_percent=3.0, seed=7)
     kwargs = {"alpha": 0.2} if method == "tdr-kee" else {}
     filtered = estimate(pair.tc1, pair.tc2, pair.dt, method, prefilter_hz=40.0, **kwargs)
-    manual = estimate(
-        prefilter(pair.tc1, pair.dt, 40.0),
-        prefilter(pair.tc2, pair.dt, 40.0),
-        pair.dt,
-        method,
-        **kwargs,
-    )
+    # Both filtered, the ends the filter's padding disturbs left out (prefilter_pair).
+    filtered_pair = prefilter_pair(pair.tc1, pair.tc2, pair.dt, 40.0)
+    manual = estimate(*filtered_pair, pair.dt, method, **kwargs)
     raw = estimate(pair.tc1, pair.tc2, pair.dt, method, **kwargs)
     assert filtered.tau1 == pytest.approx(manual.tau1, rel=1e-12)
     assert filtered.tau2 == pytest.approx(manual.tau2, rel=1e-12)

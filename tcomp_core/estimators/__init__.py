@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..choices import DEFAULT_METHOD, METHODS, PAPER_METHODS, Method
 from ..errors import DataError, TcompError
-from ..filters import prefilter
+from ..filters import prefilter_pair
 from ..lines import ForeignLine, foreign_lines, remove_lines, subtract_tones
 from ..validation import (
     check_excitation,
@@ -178,8 +178,7 @@ def estimate(
             # ratio to measure, and equal weights are what the data allow.
             phi, measured = 1.0, False
     if prefilter_hz is not None:
-        first = prefilter(first, dt, prefilter_hz)
-        second = prefilter(second, dt, prefilter_hz)
+        first, second = prefilter_pair(first, second, dt, prefilter_hz)
     if reject_lines is None:
         reject_lines = method == "ml-eiv"
     ratio = phi  # the closure below needs it bound as a float

@@ -28,7 +28,7 @@ from ..estimators import (
 from ..estimators.beta import estimate_beta_from_scatter
 from ..estimators.mleiv import phi_from_data
 from ..estimators.scatter import beta_scatter, solve_gtls
-from ..filters import prefilter
+from ..filters import prefilter_pair, transient_samples
 from ..fit import fit_error_percent, rms_about_mean
 from ..tracking import ForgettingEstimator
 from ..validation import MIN_SAMPLES
@@ -325,15 +325,16 @@ class EstimationJob:
                 phi = phi_from_data(longest[:, 0], longest[:, 1], dt, unmeasurable=1.0)
             scatter = np.zeros((3, 3))
             used = 0
+            # A pre-filter's start-up transients are left out at both ends of each segment.
+            edge = 0 if prefilter_hz is None else transient_samples(prefilter_hz, dt)
             for segment in segments:
-                if segment.shape[0] <= MIN_PREFILTER_SAMPLES:
+                if segment.shape[0] <= MIN_PREFILTER_SAMPLES + 2 * edge:
                     continue
                 first, second = segment[:, 0], segment[:, 1]
                 if prefilter_hz is not None:
-                    first = prefilter(first, dt, prefilter_hz)
-                    second = prefilter(second, dt, prefilter_hz)
+                    first, second = prefilter_pair(first, second, dt, prefilter_hz)
                 scatter += beta_scatter(first, second)
-                used += segment.shape[0]
+                used += first.size
             if used < MIN_SAMPLES:
                 raise DataError(f"the window's gap-free segments hold only {used} samples")
             result = estimate_beta_from_scatter(scatter, dt, used, config.method, phi)
