@@ -8,7 +8,7 @@ from tcomp_core.simulate import simulate_pair
 
 
 @functools.lru_cache(maxsize=256)
-def _cached_pair(kind, tau1, tau2, dt, duration, noise_percent, phi, seed):
+def _cached_pair(kind, tau1, tau2, dt, duration, noise_percent, phi, seed, freq_hz):
     pair = simulate_pair(
         kind,
         tau1=tau1,
@@ -18,6 +18,7 @@ def _cached_pair(kind, tau1, tau2, dt, duration, noise_percent, phi, seed):
         noise_percent=noise_percent,
         phi=phi,
         seed=seed,
+        signal_params=None if freq_hz is None else {"freq_hz": freq_hz},
     )
     for array in (pair.time, pair.gas, pair.tc1, pair.tc2, pair.clean1, pair.clean2):
         array.flags.writeable = False  # shared between tests: nobody may modify it
@@ -34,8 +35,12 @@ def make_pair(
     noise_percent=0.0,
     phi=1.0,
     seed=0,
+    freq_hz=None,
 ):
-    """A seeded simulate_pair record (read-only arrays), cached across tests."""
+    """A seeded simulate_pair record (read-only arrays), cached across tests.
+
+    ``freq_hz``: the signal's frequency (its generator's default when None).
+    """
     return _cached_pair(
         kind,
         float(tau1),
@@ -45,6 +50,7 @@ def make_pair(
         float(noise_percent),
         float(phi),
         int(seed),
+        None if freq_hz is None else float(freq_hz),
     )
 
 

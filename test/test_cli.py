@@ -5,10 +5,10 @@ import sys
 
 import numpy as np
 import pytest
+from sim_records import make_pair
 
 from tcomp_core.cli import build_parser, main
 from tcomp_core.io import read_record, write_csv
-from tcomp_core.simulate import simulate_pair
 
 VERBS = [
     "simulate",
@@ -79,15 +79,8 @@ def test_estimate_all_methods_table(simulated, capsys):
 
 def test_estimate_says_when_the_data_do_not_pin_tau_down(simulated, tmp_path, capsys):
     """A 0.5 Hz sine seen by sensors of 20 and 100 ms: its τ1 interval spans far beyond ±20 %."""
-    pair = simulate_pair(
-        "sinusoid",
-        tau1=0.02,
-        tau2=0.1,
-        dt=0.002,
-        duration=8.0,
-        noise_percent=2.0,
-        seed=6,
-        signal_params={"freq_hz": 0.5},
+    pair = make_pair(
+        "sinusoid", tau1=0.02, tau2=0.1, duration=8.0, noise_percent=2.0, seed=6, freq_hz=0.5
     )
     slow = write_csv(tmp_path / "slow.csv", pair.time, pair.tc1, pair.tc2)
     capsys.readouterr()

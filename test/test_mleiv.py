@@ -478,15 +478,8 @@ def test_a_tau_undetermined_beside_level_and_gain_is_refused_not_overflowed(seed
     interval raised OverflowError out of estimate(). Which check refuses a record depends on
     where the search ends (seed 1 reached this guard before the criterion was compiled, the
     condition check after): either way it is refused as undetermined."""
-    pair = simulate_pair(
-        "sinusoid",
-        tau1=0.02,
-        tau2=0.1,
-        dt=0.002,
-        duration=8.0,
-        noise_percent=2.0,
-        seed=seed,
-        signal_params={"freq_hz": 0.1},
+    pair = make_pair(
+        "sinusoid", tau1=0.02, tau2=0.1, duration=8.0, noise_percent=2.0, seed=seed, freq_hz=0.1
     )
     with pytest.raises(NoExcitationError, match=reason):
         estimate(pair.tc1, pair.tc2, pair.dt)

@@ -10,12 +10,12 @@ import warnings
 
 import numpy as np
 import pytest
+from sim_records import make_pair
 
 from tcomp_core import estimate
 from tcomp_core.errors import NoExcitationError
 from tcomp_core.estimators import mleiv
 from tcomp_core.estimators.eiv_noise import NoiseMoments, noise_moments, sandwich_covariance
-from tcomp_core.simulate import simulate_pair
 
 DT = 0.002
 TAUS = (0.02, 0.1)
@@ -62,18 +62,17 @@ def test_the_noise_terms_are_what_pure_noise_gives(phi, gain, taus):
     np.testing.assert_array_less(np.abs(observed - fourth) / scale, 0.15)
 
 
-def _estimates(kind, seeds, signal_params=None, prefilter_hz=None):
+def _estimates(kind, seeds, freq_hz=None, prefilter_hz=None):
     logs, errors, hits = [], [], []
     for seed in seeds:
-        pair = simulate_pair(
+        pair = make_pair(
             kind,
             tau1=TAUS[0],
             tau2=TAUS[1],
-            dt=DT,
             duration=8.0,
             noise_percent=2.0,
             seed=seed,
-            signal_params=signal_params or {},
+            freq_hz=freq_hz,
         )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -91,7 +90,7 @@ def _estimates(kind, seeds, signal_params=None, prefilter_hz=None):
 
 def test_intervals_on_a_slow_sine_hold_the_spread_of_the_estimates():
     """0.5 Hz for τ of 20 and 100 ms: the old intervals were 2.5 times too narrow (47 % missed)."""
-    logs, errors, hits = _estimates("sinusoid", range(7000, 7040), {"freq_hz": 0.5})
+    logs, errors, hits = _estimates("sinusoid", range(7000, 7040), freq_hz=0.5)
     # The standard error of log τ (se/τ, the delta method) against the spread of log τ over
     # 40 records (its own sampling spread: 11 %).
     np.testing.assert_allclose(np.median(errors, axis=0), logs.std(axis=0), rtol=0.3)
@@ -110,7 +109,7 @@ def test_intervals_after_a_pre_filter_hold_the_spread_of_the_estimates(kind):
 def test_broadband_intervals_are_unchanged_by_the_noise_terms():
     """A multisine excites the sensors across their band: the noise's share is negligible and
     the intervals are σ²(JᵀJ)⁻¹'s, as before."""
-    pair = simulate_pair("multisine", tau1=TAUS[0], tau2=TAUS[1], dt=DT, duration=8.0, seed=3)
+    pair = make_pair("multisine", tau1=TAUS[0], tau2=TAUS[1], duration=8.0, seed=3)
     found = estimate(pair.tc1, pair.tc2, pair.dt)
     problem = mleiv._CrossRelation.from_signals(
         pair.tc1, pair.tc2, DT, found.phi, mleiv._gain_weight(pair.tc2)
