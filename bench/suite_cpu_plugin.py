@@ -1,7 +1,8 @@
 """pytest plugin of ``bench_suite.py``: each test's wall time and CPU time, one JSON line each.
 
 The CPU is the worker process's own (``RUSAGE_SELF``) and that of the processes it started
-and reaped during the test (``RUSAGE_CHILDREN``), in seconds; the lines go to the file named
+and reaped during the test (``RUSAGE_CHILDREN``), in seconds, and when it ended (``end``, epoch
+s: which worker finished last, and when); the lines go to the file named
 by ``$SUITE_CPU_RECORD`` (appended, one writer per line: the workers share it).
 """
 
@@ -38,6 +39,7 @@ def pytest_runtest_protocol(item, nextitem):
             "self": own_after - own,
             "children": children_after - children,
             "worker": os.environ.get("PYTEST_XDIST_WORKER", ""),
+            "end": time.time(),
         }
     )
     with open(path, "a", encoding="utf-8") as handle:

@@ -8,6 +8,7 @@ exactly (Van Loan) and augmented with the two first-order sensors (Eqs. 4–6 of
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -167,19 +168,20 @@ class FusionModel:
             prior = np.array([DIFFUSE_STD, DIFFUSE_STD / self.tau1])
             return dynamics, np.diag([0.0, self.q]), np.array([1.0, 0.0]), prior
         omega = 2.0 * math.pi * self.freq_hz
+        # The level's random walk, then the signal's block: [[0, 0], [0, block]].
+        size = 1 + (self.order if self.kind == "band-limited" else 2)
+        dynamics = np.zeros((size, size))
+        intensity = np.zeros((size, size))
+        intensity[0, 0] = self.level_q
+        output = np.zeros(size)
+        output[:2] = 1.0
         if self.kind == "band-limited":
-            block = butterworth_dynamics(self.order, omega)
-            noise = np.zeros((self.order, self.order))
-            noise[-1, -1] = self.q
-            output = np.concatenate(([1.0, 1.0], np.zeros(self.order - 1)))
-            prior = np.full(self.order + 1, DIFFUSE_STD)
+            dynamics[1:, 1:] = butterworth_dynamics(self.order, omega)
+            intensity[-1, -1] = self.q
         else:
-            block = np.array([[0.0, -omega], [omega, 0.0]])
-            noise = np.diag([self.q, self.q])
-            output = np.array([1.0, 1.0, 0.0])
-            prior = np.full(3, DIFFUSE_STD)
-        dynamics = scipy.linalg.block_diag(np.zeros((1, 1)), block)
-        return dynamics, scipy.linalg.block_diag(np.array([[self.level_q]]), noise), output, prior
+            dynamics[1, 2], dynamics[2, 1] = -omega, omega
+            intensity[1, 1] = intensity[2, 2] = self.q
+        return dynamics, intensity, output, np.full(size, DIFFUSE_STD)
 
     def state_space(self) -> StateSpace:
         """The augmented discrete model ``s_k = [x_{k-1}, T_1(k), T_2(k)]`` (module docstring)."""
@@ -221,12 +223,19 @@ def butterworth_dynamics(order: int, omega: float) -> NDArray[np.float64]:
     ndarray, shape (order, order)
         1/s.
     """
+    return omega * _unit_butterworth_dynamics(order)
+
+
+@functools.cache
+def _unit_butterworth_dynamics(order: int) -> NDArray[np.float64]:
+    """:func:`butterworth_dynamics` at ω = 1 rad/s (read-only: one array per order)."""
     angles = np.pi / 2.0 + np.pi * (2.0 * np.arange(order) + 1.0) / (2.0 * order)
     coefficients = np.real(np.poly(np.exp(1j * angles)))  # s^n + c_1 s^(n-1) + ..., ω = 1
     dynamics = np.zeros((order, order))
     dynamics[:-1, 1:] = np.eye(order - 1)
     dynamics[-1] = -coefficients[:0:-1]
-    return omega * dynamics
+    dynamics.flags.writeable = False
+    return dynamics
 
 
 def butterworth_unit_variance(order: int, omega: float) -> float:
