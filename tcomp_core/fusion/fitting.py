@@ -335,7 +335,7 @@ def _fit_autoregressive(fit: _Fitting) -> FusionModel:
             model = _autoregressive_model(fit, coefficients, reference, [result.x])
         except ValueError:  # a numerically non-stationary Yule–Walker solution
             continue
-        score = fit.cost(model) + model.n_hyperparameters
+        score = float(result.fun) + model.n_hyperparameters  # the cost at result.x
         if best is None or score < best[0]:
             best = (score, model)
     if best is None:
