@@ -211,3 +211,18 @@ def test_the_causal_filters_start_is_the_kalman_recursion(kind, monkeypatch):
             assert np.max(np.abs(got - want)) <= 1e-6 * np.max(np.abs(want)), model
         compared += 1
     assert compared >= 10
+
+
+def test_the_gain_solve_is_scipys_positive_definite_solve_to_the_bit():
+    """The filter gain's 2×2 solve calls LAPACK's posv itself: scipy's result, its errors."""
+    rng = np.random.default_rng(5)
+    for columns in (3, 5, 11, 35):
+        factor = rng.standard_normal((2, 2))
+        matrix = factor @ factor.T + rng.uniform(1e-8, 1.0) * np.eye(2)
+        rhs = rng.standard_normal((2, columns))
+        expected = scipy.linalg.solve(matrix, rhs, assume_a="pos")
+        assert np.array_equal(kalman._solve_positive(matrix, rhs), expected)
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        kalman._solve_positive(np.array([[1.0, 2.0], [2.0, 1.0]]), np.ones((2, 3)))
+    with pytest.raises(ValueError, match="infs or NaNs"):
+        kalman._solve_positive(np.array([[1.0, 0.0], [0.0, np.nan]]), np.ones((2, 3)))

@@ -88,10 +88,34 @@ def _gains(model: StateSpace, predicted: NDArray[np.float64]) -> SteadyState:
     """The filter's gain, covariances and closed loop from the prediction covariance (n, n)."""
     f, h = model.transition, model.observation
     innovation = h @ predicted @ h.T + model.noise
-    gain = scipy.linalg.solve(innovation, h @ predicted, assume_a="pos").T
+    gain = _solve_positive(innovation, h @ predicted).T
     filtered = predicted - gain @ innovation @ gain.T
     closed_loop = f @ (np.eye(f.shape[0]) - gain @ h)
     return SteadyState(predicted, 0.5 * (filtered + filtered.T), gain, innovation, closed_loop)
+
+
+def _solve_positive(matrix: NDArray[np.float64], rhs: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``scipy.linalg.solve(matrix, rhs, assume_a="pos")``: LAPACK's ``posv`` called directly.
+
+    The same routine and the same result to the bit, without scipy's checks around it (19 µs
+    of a likelihood evaluation's ~900 against 1 µs): a fit evaluates the likelihood hundreds
+    of times. Unlike scipy's ``solve`` it does not warn of an ill-conditioned matrix.
+
+    Raises
+    ------
+    ValueError
+        If either array holds a NaN or an infinity (as scipy's check raises).
+    numpy.linalg.LinAlgError
+        If ``matrix`` is not positive definite.
+    """
+    if not (np.all(np.isfinite(matrix)) and np.all(np.isfinite(rhs))):
+        raise ValueError("array must not contain infs or NaNs")
+    _, solution, info = scipy.linalg.lapack.dposv(matrix, rhs)
+    if info > 0:
+        raise np.linalg.LinAlgError("the innovation covariance is not positive definite")
+    if info < 0:
+        raise ValueError(f"illegal value in argument {-info} of LAPACK's dposv")
+    return np.asarray(solution, dtype=np.float64)
 
 
 @dataclass(frozen=True)
