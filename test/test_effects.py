@@ -102,14 +102,21 @@ def test_fractional_shift_interpolates_a_smooth_signal_exactly_enough():
     assert weights.sum() == pytest.approx(1.0)
 
 
+#: How close the cross-relation fit comes to β-GTLS's closed-form minimum of the same
+#: criterion: it stops at a relative cost change of FIT_TOLERANCE (effects/model.py), within
+#: a twentieth of τ's standard error of it (1.1 % and 0.43 % on these records; another
+#: estimator's τ, e.g. ml-eiv's, is a percent away).
+SAME_MINIMUM = 5e-4
+
+
 def test_base_model_fit_is_beta_gtls(pair_factory):
     pair = pair_factory("ramp", noise_percent=2.0, seed=4)
     gtls = estimate(pair.tc1, pair.tc2, pair.dt, "beta-gtls")
     context = make_context(pair.time, pair.tc1, pair.tc2, pair.dt, tau_scale_s=0.1)
     start = Model(params={"tau1": 1.2 * gtls.tau1, "tau2": 0.8 * gtls.tau2})
     fitted = start.fit(pair.tc1, pair.tc2, context)
-    assert fitted.tau1 == pytest.approx(gtls.tau1, rel=1e-4)
-    assert fitted.tau2 == pytest.approx(gtls.tau2, rel=1e-4)
+    assert fitted.tau1 == pytest.approx(gtls.tau1, rel=SAME_MINIMUM)
+    assert fitted.tau2 == pytest.approx(gtls.tau2, rel=SAME_MINIMUM)
 
 
 def test_noise_ratio_fit_is_beta_gtls_with_phi(pair_factory):
@@ -119,8 +126,8 @@ def test_noise_ratio_fit_is_beta_gtls_with_phi(pair_factory):
     model = Model(("noise_ratio",), {"tau1": 0.03, "tau2": 0.1})
     fitted = model.fit(pair.tc1, pair.tc2, context)
     assert fitted.params["phi"] == 0.2
-    assert fitted.tau1 == pytest.approx(gtls.tau1, rel=1e-4)
-    assert fitted.tau2 == pytest.approx(gtls.tau2, rel=1e-4)
+    assert fitted.tau1 == pytest.approx(gtls.tau1, rel=SAME_MINIMUM)
+    assert fitted.tau2 == pytest.approx(gtls.tau2, rel=SAME_MINIMUM)
 
 
 TRUE_PARAMS = {
