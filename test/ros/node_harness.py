@@ -82,8 +82,12 @@ class Harness:
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.01)
 
-    def next_diagnostics(self, predicate=lambda status: True, timeout=5.0, since=None):
-        """The first status matching ``predicate`` published after ``since`` (default: now)."""
+    def next_diagnostics(self, predicate=lambda status: True, timeout=30.0, since=None):
+        """The first status matching ``predicate`` published after ``since`` (default: now).
+
+        The timeout only bounds a failing wait: a suite on both cores of a loaded CI machine
+        took more than 5 s to the first estimate's report.
+        """
         seen = len(self.diagnostics) if since is None else since
 
         def arrived():
