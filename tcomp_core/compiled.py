@@ -13,18 +13,30 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["compile_loops"]
+__all__ = ["REWRITE_FLAGS", "compile_loops"]
+
+#: Fast-math flags that only rewrite arithmetic, each step within an ulp or so: a division by a
+#: loop-invariant becomes a multiplication by its reciprocal (``arcp``), a product and a sum
+#: one fused multiply-add (``contract``). Not the flags that assume no NaN or infinity (a loop
+#: fed one must still return it) nor those that reorder sums.
+REWRITE_FLAGS = frozenset({"arcp", "contract"})
 
 
-def compile_loops(*functions: Callable[..., Any]) -> tuple[Callable[..., Any], ...]:
-    """The ``functions`` compiled by numba (nopython, no GIL held), or themselves without it."""
+def compile_loops(
+    *functions: Callable[..., Any], fastmath: frozenset[str] = frozenset()
+) -> tuple[Callable[..., Any], ...]:
+    """The ``functions`` compiled by numba (nopython, no GIL held), or themselves without it.
+
+    ``fastmath``: LLVM's fast-math flags to allow (:data:`REWRITE_FLAGS`, say); none by default.
+    """
     try:
         import numba
     except ImportError:  # pragma: no cover - numba is a dependency; Python is the fallback
         return functions
+    options: dict[str, Any] = {"nogil": True, "fastmath": set(fastmath)}
     try:
-        compile_: Any = numba.njit(cache=True, nogil=True)
+        compile_: Any = numba.njit(cache=True, **options)
         return tuple(compile_(function) for function in functions)
     except RuntimeError:  # no writable cache directory (a read-only install, no home)
-        compile_ = numba.njit(nogil=True)
+        compile_ = numba.njit(**options)
         return tuple(compile_(function) for function in functions)

@@ -23,6 +23,7 @@ from .validation import check_sample_interval
 __all__ = [
     "NoiseEstimate",
     "estimate_noise",
+    "median",
     "model_noise",
     "signal_band_edge",
     "welch_spectra",
@@ -56,6 +57,14 @@ class NoiseEstimate:
     band_hz: tuple[float, float]
 
 
+@functools.lru_cache(maxsize=16)
+def _hann(length: int) -> NDArray[np.float64]:
+    """``scipy.signal.get_window("hann", length)``, read-only (cached: it cost 40 µs a call)."""
+    window = signal.get_window("hann", length)
+    window.flags.writeable = False
+    return window
+
+
 def welch_spectra(
     x: NDArray[np.float64],
     dt: float,
@@ -84,7 +93,7 @@ def welch_spectra(
     """
     step = nperseg - nperseg // 2  # scipy's default overlap: nperseg // 2
     count = (x.shape[-1] - nperseg) // step + 1
-    window = signal.get_window("hann", nperseg)
+    window = _hann(nperseg)
     scale = 1.0 / (np.sum(window**2) / dt)  # density: 1 / (fs Σw²)
     ramp = np.arange(nperseg) - 0.5 * (nperseg - 1)
 
@@ -114,6 +123,21 @@ def welch_spectra(
 def _chi2_quantile(quantile: float, dof: int) -> float:
     """The ``quantile`` of χ² with ``dof`` degrees of freedom (cached: scipy's costs 0.5 ms)."""
     return float(stats.chi2.ppf(quantile, dof))
+
+
+def median(values: NDArray[np.float64], overwrite: bool = False) -> float:
+    """``np.median`` of a non-empty 1-D array, to the last bit, from one partition.
+
+    numpy's median cost six times the partition on the 10 000 samples of a 2 s window at
+    5 kHz. With ``overwrite`` the partition reorders ``values`` in place (no copy).
+    """
+    parted = values if overwrite else values.copy()
+    half = parted.size // 2
+    if parted.size % 2:
+        parted.partition(half)
+        return float(parted[half])
+    parted.partition((half - 1, half))
+    return float((parted[half - 1] + parted[half]) / 2.0)
 
 
 def low_quantile(values: NDArray[np.float64], quantile: float) -> float:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from tcomp_core.noise import low_quantile, welch_spectra
+from tcomp_core.noise import low_quantile, median, welch_spectra
 
 
 @pytest.mark.parametrize("size", [1024, 5000, 10_001])
@@ -33,3 +33,17 @@ def test_low_quantile_equals_numpy(quantile):
     for size in [1, 2, 3, 10, 175, 176, 1000]:
         values = rng.exponential(size=size) * 10.0 ** rng.uniform(-6, 6)
         assert low_quantile(values, quantile) == float(np.quantile(values, quantile))
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_median_equals_numpy_to_the_last_bit(overwrite):
+    rng = np.random.default_rng(17)
+    for size in [1, 2, 3, 10, 9998, 9999]:
+        values = rng.normal(size=size) * 10.0 ** rng.uniform(-6, 6)
+        expected = float(np.median(values))
+        kept = values.copy()
+        assert median(values, overwrite=overwrite) == expected
+        if not overwrite:
+            np.testing.assert_array_equal(values, kept)
+        else:
+            np.testing.assert_array_equal(np.sort(values), np.sort(kept))

@@ -67,17 +67,20 @@ def forward_jacobian(
     """Forward-difference Jacobian, shape (m, n), with ``least_squares``' "2-point" steps.
 
     h_j = √eps · sign(x_j) · max(1, |x_j|) (sign 0 = +1), taken backwards where x + h would
-    pass the upper bound; the step actually taken, (x_j + h_j) - x_j, divides.
+    pass the upper bound; the step actually taken, (x_j + h_j) - x_j, divides. Stored by
+    columns (Fortran order): each column is one contiguous vector for the norms and products
+    its users take of it.
     """
     sign = np.where(x >= 0.0, 1.0, -1.0)
     steps = np.sqrt(_EPS) * sign * np.maximum(1.0, np.abs(x))
     steps = np.where(x + steps > high, -steps, steps)
-    jacobian = np.empty((f0.size, x.size))
+    columns = np.empty((x.size, f0.size))
     for j in range(x.size):
         moved = x.copy()
         moved[j] += steps[j]
-        jacobian[:, j] = (fun(moved) - f0) / (moved[j] - x[j])
-    return jacobian
+        np.subtract(fun(moved), f0, out=columns[j])
+        columns[j] /= moved[j] - x[j]
+    return columns.T
 
 
 def levenberg_marquardt(

@@ -67,7 +67,7 @@ from scipy.optimize import least_squares
 
 from ..errors import DataError, EstimationError, NoExcitationError, TcompError
 from ..filters import PREFILTER_ORDER, decimate, lowpass_sos
-from ..noise import estimate_noise, model_noise
+from ..noise import estimate_noise, median, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
 from .eiv_noise import noise_moments, sandwich_covariance
@@ -255,9 +255,13 @@ class _CrossRelation:
         """Residual samples M = N - 1."""
         return self.level.size
 
-    def gains(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """c_i = 1/(1 - a_i), shape (2,), for x = (log τ1, log τ2, h)."""
-        return 1.0 / -np.expm1(-self.dt / np.exp(x[:2]))
+    def gains(self, x: NDArray[np.float64]) -> tuple[float, float]:
+        """c_i = 1/(1 - a_i), i = 1, 2, for x = (log τ1, log τ2, h)."""
+        dt = self.dt
+        return (
+            1.0 / -math.expm1(-dt / math.exp(x[0])),
+            1.0 / -math.expm1(-dt / math.exp(x[1])),
+        )
 
     def residual(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """e[k] = u1[k] - g u2[k] up to a constant, shape (M,), degrees C.
@@ -530,7 +534,10 @@ def _gain_weight(tc2: NDArray[np.float64]) -> float:
     depend on the search's start, so neither does the estimate.
     """
     second = np.diff(tc2, 2)
-    mad = float(np.median(np.abs(second - np.median(second)))) if second.size else 0.0
+    mad = 0.0
+    if second.size:
+        np.subtract(second, median(second, overwrite=True), out=second)
+        mad = median(np.abs(second, out=second), overwrite=True)
     sigma2 = _MAD_TO_SIGMA * mad / math.sqrt(6.0)
     return max(sigma2, _PRIOR_NOISE_FLOOR * float(np.std(tc2))) / GAIN_PRIOR
 
