@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from tcomp_core.estimators.gauss_newton import forward_jacobian, levenberg_marquardt
+from tcomp_core.estimators.gauss_newton import (
+    forward_jacobian,
+    levenberg_marquardt,
+    normal_matrix,
+)
 
 
 def _exponentials(seed: int):
@@ -51,3 +55,13 @@ def test_the_forward_jacobian_steps_back_from_the_upper_bound():
     x = np.array([1.0, 2.0])
     jacobian = forward_jacobian(fun, x, fun(x), np.array([1.0, 10.0]))
     np.testing.assert_allclose(jacobian, [[2.0, 0.0], [0.0, 3.0]], rtol=1e-6, atol=1e-7)
+
+
+def test_the_normal_matrix_is_jt_j_for_either_storage_order():
+    rng = np.random.default_rng(23)
+    jacobian = rng.normal(size=(1000, 3)) * np.array([1.0, 1e-4, 1e3])
+    expected = jacobian.T @ jacobian
+    for stored in (np.ascontiguousarray(jacobian), np.asfortranarray(jacobian)):
+        found = normal_matrix(stored)
+        np.testing.assert_allclose(found, expected, rtol=1e-12)
+        np.testing.assert_array_equal(found, found.T)

@@ -22,9 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SearchResult", "levenberg_marquardt"]
+__all__ = ["SearchResult", "levenberg_marquardt", "normal_matrix"]
 
-_EPS = np.finfo(np.float64).eps
+#: √eps, the relative step of the forward differences (``least_squares``' "2-point").
+_ROOT_EPS = float(np.sqrt(np.finfo(np.float64).eps))
 #: Damping of the first failed step, relative to the diagonal of JᵀJ, and its growth.
 _DAMPING_START = 1e-3
 _DAMPING_GROWTH = 10.0
@@ -71,16 +72,33 @@ def forward_jacobian(
     columns (Fortran order): each column is one contiguous vector for the norms and products
     its users take of it.
     """
-    sign = np.where(x >= 0.0, 1.0, -1.0)
-    steps = np.sqrt(_EPS) * sign * np.maximum(1.0, np.abs(x))
-    steps = np.where(x + steps > high, -steps, steps)
     columns = np.empty((x.size, f0.size))
     for j in range(x.size):
+        value = float(x[j])
+        step = _ROOT_EPS * (1.0 if value >= 0.0 else -1.0) * max(1.0, abs(value))
+        if value + step > high[j]:
+            step = -step
         moved = x.copy()
-        moved[j] += steps[j]
+        moved[j] += step
         np.subtract(fun(moved), f0, out=columns[j])
-        columns[j] /= moved[j] - x[j]
+        columns[j] /= moved[j] - value
     return columns.T
+
+
+def normal_matrix(jacobian: NDArray[np.float64]) -> NDArray[np.float64]:
+    """JᵀJ, shape (n, n), of a Jacobian of shape (m, n) with few columns and many rows.
+
+    One dot product per pair of columns: for three columns of 10 000 rows stored by columns
+    (:func:`forward_jacobian`) a third of the time of ``jacobian.T @ jacobian``, whose
+    general matrix product spends more on set-up than on the 60 000 products.
+    """
+    columns = jacobian.T
+    count = columns.shape[0]
+    normal = np.empty((count, count))
+    for i in range(count):
+        for j in range(i, count):
+            normal[i, j] = normal[j, i] = float(columns[i] @ columns[j])
+    return normal
 
 
 def levenberg_marquardt(
@@ -130,7 +148,7 @@ def levenberg_marquardt(
             jacobian = forward_jacobian(fun, x, residual, high)
             used += x.size
             gradient = jacobian.T @ residual
-            normal = jacobian.T @ jacobian
+            normal = normal_matrix(jacobian)
             if float(np.max(np.abs(gradient))) < gtol:
                 return _result(x, cost, jacobian, nfev, "gtol")
         scale = np.diag(np.diag(normal))

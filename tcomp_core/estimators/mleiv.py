@@ -71,7 +71,7 @@ from ..noise import estimate_noise, median, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
 from .eiv_noise import noise_moments, sandwich_covariance
-from .gauss_newton import SearchResult, levenberg_marquardt
+from .gauss_newton import SearchResult, levenberg_marquardt, normal_matrix
 from .projection import projected_residual
 from .result import Estimate, estimate_from_poles
 from .toeplitz import ToeplitzWhitening
@@ -747,7 +747,7 @@ def _covariance(
         float(max(problem.gains(x))),
         response,
     )
-    return sandwich_covariance(jacobian.T @ jacobian, moments)
+    return sandwich_covariance(normal_matrix(jacobian), moments)
 
 
 def _interval_params(tau: NDArray[np.float64], covariance: NDArray) -> dict[str, float]:

@@ -35,6 +35,7 @@ from ..compensation import OutputModel
 from ..errors import DataError
 from ..estimators.result import MAX_TAU_INTERVAL
 from ..fusion import FusionModel
+from ..noise import median
 from ..validation import MIN_SAMPLES
 from ..workers import InlineRunner, JobRunner
 from .config import (
@@ -626,7 +627,7 @@ class OnlineCompensator:
             return None
         newest = np.fromiter(self._steps, dtype=np.float64, count=len(self._steps))
         period_ns = self._period * 1e9
-        new_ns = float(np.median(newest))
+        new_ns = median(newest)
         off = np.abs(newest - period_ns) > RATE_TOLERANCE * period_ns
         common = np.abs(newest - new_ns) <= RATE_TOLERANCE * new_ns
         if not (off.all() and common.mean() >= 0.9):
