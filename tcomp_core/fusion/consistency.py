@@ -30,12 +30,15 @@ to 76 (both), all within 50 ms of the change from the sine to the steps.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
+from ..compiled import compile_loops
 from ..models import tau_to_pole
 from .signal_model import FusionModel
 
@@ -74,13 +77,90 @@ MATERIAL_WIDENING = 2.0
 MAX_HOLD_SAMPLES = 8 * CONSISTENCY_MEMORY
 
 
-def _moving_average(
-    values: NDArray[np.float64], memory: int, carried: float
-) -> NDArray[np.float64]:
-    """Exponential average of ``values`` (M,) over ``memory`` samples from ``carried``."""
-    rate = 1.0 / memory
-    average, _ = signal.lfilter([rate], [1.0, rate - 1.0], values, zi=[(1.0 - rate) * carried])
-    return np.asarray(average, dtype=float)
+def _widen_loop(
+    std: NDArray[np.float64],
+    innovations: NDArray[np.float64],
+    inverse: NDArray[np.float64],
+    gas: NDArray[np.float64],
+    inversion: NDArray[np.float64],
+    state: NDArray[np.float64],
+    settings: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> int:
+    # One pass of ConsistencyCheck.widen (see there). state: [offset 1, offset 2, offsets seen,
+    # innovation average, innovation held, gas ratio, gas held], carried in and out. settings:
+    # [inversion variance, log decay, OFFSET_MEMORY, CONSISTENCY_MEMORY, CONSISTENCY_THRESHOLD,
+    # GAS_MEMORY, GAS_THRESHOLD, MATERIAL_WIDENING]. Writes the std to publish into out;
+    # returns how many were widened materially.
+    inversion_variance = settings[0]
+    decay = math.exp(settings[1])
+    offset_memory = settings[2]
+    innovation_rate = 1.0 / settings[3]
+    consistency_threshold = settings[4]
+    gas_rate = 1.0 / settings[5]
+    gas_decay = math.exp(-1.0 / settings[5])
+    gas_threshold = settings[6]
+    material_widening = settings[7]
+    offset_rate = 1.0 / offset_memory
+    mean1 = state[0]
+    mean2 = state[1]
+    seen = state[2]
+    base1 = mean1 * seen  # the plain mean's running sum: seen means plus those added
+    base2 = mean2 * seen
+    added1 = 0.0
+    added2 = 0.0
+    average = state[3]
+    held = state[4] - 1.0
+    ratio = state[5]
+    gas_held = state[6]
+    material = 0
+    for k in range(std.size):
+        # The innovations less their mean before this sample, normalised and squared.
+        first = innovations[0, k] - mean1
+        second = innovations[1, k] - mean2
+        square = first * (inverse[k, 0, 0] * first + inverse[k, 0, 1] * second) + second * (
+            inverse[k, 1, 0] * first + inverse[k, 1, 1] * second
+        )
+        if seen < offset_memory:  # a plain mean until OFFSET_MEMORY, then exponential
+            added1 += innovations[0, k]
+            added2 += innovations[1, k]
+            seen += 1.0
+            mean1 = (base1 + added1) / seen
+            mean2 = (base2 + added2) / seen
+        else:
+            seen += 1.0
+            mean1 = offset_rate * innovations[0, k] + (1.0 - offset_rate) * mean1
+            mean2 = offset_rate * innovations[1, k] + (1.0 - offset_rate) * mean2
+        average = innovation_rate * (0.5 * square) + (1.0 - innovation_rate) * average
+        held = max(max(average - 1.0, 0.0), held * decay)
+        widened = std[k] * (math.sqrt(1.0 + held) if 1.0 + held > consistency_threshold else 1.0)
+        variance = std[k] * std[k]
+        expected = max(inversion_variance - variance, 1e-3 * inversion_variance)
+        difference = gas[k] - inversion[k]
+        ratio = gas_rate * (difference * difference / expected) + (1.0 - gas_rate) * ratio
+        excess = 0.0
+        if ratio > gas_threshold:
+            # The filter's error the difference implies: E d² = var_inv + E e² - 2 cov, cov ≈ var.
+            excess = max(ratio * expected - inversion_variance + 2.0 * variance - variance, 0.0)
+        gas_held = max(excess, gas_held * gas_decay)
+        published = max(widened, math.sqrt(variance + gas_held))
+        out[k] = published
+        if published >= material_widening * std[k]:
+            material += 1
+    state[0] = mean1
+    state[1] = mean2
+    state[2] = seen
+    state[3] = average
+    state[4] = 1.0 + held
+    state[5] = ratio
+    state[6] = gas_held
+    return material
+
+
+@functools.cache
+def _widen_kernel() -> Callable[..., Any]:
+    """:func:`_widen_loop`, compiled where numba is installed (once per process, on disk)."""
+    return compile_loops(_widen_loop)[0]
 
 
 class ConsistencyCheck:
@@ -115,12 +195,10 @@ class ConsistencyCheck:
 
     def reset(self) -> None:
         """Forget the averages: the next batch starts from a model that agrees."""
-        self._innovation_average = 1.0
-        self._offset = np.zeros(2)  # running mean of the innovations
-        self._offset_count = 0  # innovations in it (a plain mean until OFFSET_MEMORY)
-        self._innovation_held = 1.0
-        self._gas_ratio = 1.0
-        self._gas_held = 0.0  # °C², the held excess variance of the gas
+        # The running mean of the innovations (2) and how many are in it (a plain mean until
+        # OFFSET_MEMORY), the innovations' average and held excess, the gas ratio's average
+        # and its held excess variance (°C²): what :func:`_widen_loop` carries over.
+        self._state = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0])
         #: Samples of the last :meth:`widen` whose std was widened materially (by
         #: :data:`MATERIAL_WIDENING` or more).
         self.last_widened = 0
@@ -135,35 +213,6 @@ class ConsistencyCheck:
         gas1 = (tc1[1:] - a1 * tc1[:-1]) / (1.0 - a1)
         gas2 = (tc2[1:] - a2 * tc2[:-1]) / (1.0 - a2)
         return self._weight * gas1 + (1.0 - self._weight) * gas2
-
-    def _debiased_square(
-        self, innovations: NDArray[np.float64], inverse: NDArray[np.float64]
-    ) -> NDArray[np.float64]:
-        """Normalised squares (M,) of the innovations (2, M) less their mean before each.
-
-        The mean is the plain one over the innovations seen since the reset until there are
-        :data:`OFFSET_MEMORY` of them, then an exponential average over that many.
-        """
-        count = innovations.shape[1]
-        means = np.empty((2, count + 1))
-        means[:, 0] = self._offset
-        seen = self._offset_count
-        head = min(count, max(OFFSET_MEMORY - seen, 0))
-        if head:
-            sums = self._offset[:, None] * seen + np.cumsum(innovations[:, :head], axis=1)
-            means[:, 1 : head + 1] = sums / (seen + np.arange(1, head + 1))
-        if head < count:
-            rate = 1.0 / OFFSET_MEMORY
-            means[:, head + 1 :] = signal.lfilter(
-                [rate],
-                [1.0, rate - 1.0],
-                innovations[:, head:],
-                axis=1,
-                zi=(1.0 - rate) * means[:, head : head + 1],
-            )[0]
-        self._offset, self._offset_count = means[:, -1].copy(), seen + count
-        debiased = innovations - means[:, :-1]
-        return np.einsum("ik,kij,jk->k", debiased, inverse, debiased)
 
     def widen(
         self,
@@ -194,58 +243,39 @@ class ConsistencyCheck:
         self.last_widened = 0
         if not std.size:
             return std
-        square = self._debiased_square(innovations, inverse)
-        average = _moving_average(0.5 * square, CONSISTENCY_MEMORY, self._innovation_average)
-        self._innovation_average = float(average[-1])
-        held = 1.0 + self._hold(
-            np.maximum(average - 1.0, 0.0), self._innovation_held - 1.0, self._log_decay
+        settings = np.array(
+            [
+                self.inversion_variance,
+                self._log_decay,
+                OFFSET_MEMORY,
+                CONSISTENCY_MEMORY,
+                CONSISTENCY_THRESHOLD,
+                GAS_MEMORY,
+                GAS_THRESHOLD,
+                MATERIAL_WIDENING,
+            ],
+            dtype=np.float64,
         )
-        self._innovation_held = float(held[-1])
-        widened = std * np.where(held > CONSISTENCY_THRESHOLD, np.sqrt(held), 1.0)
-
-        variance = std**2
-        expected = np.maximum(self.inversion_variance - variance, 1e-3 * self.inversion_variance)
-        ratio = _moving_average((gas - inversion) ** 2 / expected, GAS_MEMORY, self._gas_ratio)
-        self._gas_ratio = float(ratio[-1])
-        # The filter's error the difference implies: E d² = var_inv + E e² - 2 cov, cov ≈ var.
-        implied = ratio * expected - self.inversion_variance + 2.0 * variance
-        excess = np.where(ratio > GAS_THRESHOLD, np.maximum(implied - variance, 0.0), 0.0)
-        # The difference sees the gas error itself: held only across the zeros of a ringing.
-        held_excess = self._hold(excess, self._gas_held, -1.0 / GAS_MEMORY)
-        self._gas_held = float(held_excess[-1])
-        published = np.maximum(widened, np.sqrt(variance + held_excess))
-        material = published >= MATERIAL_WIDENING * std
-        self.last_widened = int(np.count_nonzero(material))
-        self._last_material = bool(material[-1])
+        published = np.empty(std.size)
+        self.last_widened = int(
+            _widen_kernel()(
+                std, innovations, inverse, gas, inversion, self._state, settings, published
+            )
+        )
+        self._last_material = bool(published[-1] >= MATERIAL_WIDENING * std[-1])
         return published
 
     def widen_prediction(self, std: float) -> float:
         """The std of the prediction over the next interval, widened as the last sample's."""
-        held = 1.0 + (self._innovation_held - 1.0) * math.exp(self._log_decay)
+        held = 1.0 + (self._state[4] - 1.0) * math.exp(self._log_decay)
         factor = math.sqrt(held) if held > CONSISTENCY_THRESHOLD else 1.0
-        excess = self._gas_held * math.exp(-1.0 / GAS_MEMORY)
+        excess = self._state[6] * math.exp(-1.0 / GAS_MEMORY)
         return max(std * factor, math.sqrt(std**2 + excess))
 
     @property
     def widened(self) -> bool:
         """Whether the last sample's std was widened materially (by MATERIAL_WIDENING or more)."""
         return self._last_material
-
-    @staticmethod
-    def _hold(
-        excess: NDArray[np.float64], carried: float, log_decay: float
-    ) -> NDArray[np.float64]:
-        """Running maximum of ``excess`` (M,), each value decaying at the closed loop's rate.
-
-        ``h_k = max(excess_k, h_{k-1} ρ)`` from the carried ``h_{-1}``, computed in logs as a
-        cumulative maximum: ``log h_k = k log ρ + max_{j ≤ k} (log excess_j - j log ρ)``.
-        """
-        steps = np.arange(excess.size)
-        with np.errstate(divide="ignore"):
-            logs = np.log(excess) - steps * log_decay
-            start = math.log(carried) + log_decay if carried > 0.0 else -np.inf
-        logs[0] = max(logs[0], start)
-        return np.exp(np.maximum.accumulate(logs) + steps * log_decay)
 
 
 def widen_smoothed(
