@@ -65,3 +65,30 @@ def test_the_normal_matrix_is_jt_j_for_either_storage_order():
         found = normal_matrix(stored)
         np.testing.assert_allclose(found, expected, rtol=1e-12)
         np.testing.assert_array_equal(found, found.T)
+
+
+def test_a_search_ends_before_a_trial_the_model_says_would_not_move_it(monkeypatch):
+    from tcomp_core.estimators import gauss_newton
+
+    bounds = (np.array([-5.0, -5.0, -2.0]), np.array([5.0, 5.0, 2.0]))
+    start = np.array([np.log(2.5), np.log(1.0), 0.3])
+    saved = 0
+    for seed in range(5):
+        residual = _exponentials(seed)
+        calls = []
+
+        def counted(x, residual=residual, calls=calls):
+            calls.append(1)
+            return residual(x)
+
+        found = levenberg_marquardt(counted, start, bounds, xtol=1e-12, ftol=1e-12)
+        shortcut = len(calls)
+        calls.clear()
+        with monkeypatch.context() as patch:
+            patch.setattr(gauss_newton, "PREDICTED_SHARE", 0.0)  # every trial taken
+            full = levenberg_marquardt(counted, start, bounds, xtol=1e-12, ftol=1e-12)
+        assert found is not None and full is not None
+        np.testing.assert_allclose(found.x, full.x, rtol=1e-8, atol=1e-10)
+        assert shortcut <= len(calls)
+        saved += len(calls) - shortcut
+    assert saved >= 4  # at least one search skipped its last trial and Jacobian
