@@ -296,21 +296,29 @@ class _CrossRelation:
         The noise of e is n1 read through c1 z - (c1 - 1) and n2 through -g (c2 z - (c2 - 1))
         (z the advance); the whitening is, away from the record's start, the causal filter
         1/(√r1 (1 - s z⁻¹)) of :class:`~.toeplitz.ToeplitzWhitening` (Σ(z) = r1 (1 - s z⁻¹)
-        (1 - s z)). tc1's response is scaled by √φ, its noise σ relative to tc2's.
+        (1 - s z)). tc1's response is scaled by √φ, its noise σ relative to tc2's. ``x`` is
+        one point (shape (3,)) or several (shape (S, 3)), all taken in one pass.
 
         Returns
         -------
-        tc1, tc2 : ndarray of complex, shape (K,) each
+        tc1, tc2 : ndarray of complex, shape (K,) each, or (S, K) for several points
         """
-        c1, c2 = self.gains(x)
-        gain = 1.0 + float(x[2])
-        diagonal, off_diagonal = self.covariance_bands(x)
-        root = math.sqrt((self.phi + gain**2) * (diagonal - 2.0 * off_diagonal))
-        r1 = 0.5 * (diagonal + root)
+        points = np.atleast_2d(x)
+        scalars = np.empty((5, points.shape[0], 1))  # c1, c2, g, √r1, o/r1 per point
+        for i, point in enumerate(points):
+            gains = self.gains(point)
+            sensor_gain = 1.0 + float(point[2])
+            diagonal, off_diagonal = self.covariance_bands(point)
+            root = math.sqrt((self.phi + sensor_gain**2) * (diagonal - 2.0 * off_diagonal))
+            r1 = 0.5 * (diagonal + root)
+            scalars[:, i, 0] = (*gains, sensor_gain, math.sqrt(r1), off_diagonal / r1)
+        c1, c2, gain, root_r1, ratio = scalars
         advance = np.exp(1j * omega)
-        whitening = 1.0 / (math.sqrt(r1) * (1.0 + (off_diagonal / r1) / advance))
+        whitening = 1.0 / (root_r1 * (1.0 + ratio / advance))
         first = math.sqrt(self.phi) * whitening * (c1 * advance - (c1 - 1.0))
         second = -gain * whitening * (c2 * advance - (c2 - 1.0))
+        if np.ndim(x) == 1:
+            return first[0], second[0]
         return first, second
 
     def whitened(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
