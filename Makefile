@@ -57,6 +57,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_reconstruction.py
 	$(PY) bench/bench_diagnose.py
 	$(PY) bench/bench_process.py
+	$(PY) bench/bench_window_estimate.py --repeat 3
 	$(PY) bench/bench_realtime.py
 
 lint: $(STAMP)
