@@ -140,7 +140,7 @@ def _chi2_quantile(quantile: float, dof: int) -> float:
 
 
 def median(values: NDArray[np.float64], overwrite: bool = False) -> float:
-    """``np.median`` of a non-empty 1-D array, to the last bit, from one partition.
+    """``np.median`` of a non-empty 1-D array of finite values, to the last bit (one partition).
 
     numpy partitions at the two middle indices at once, which cost eight times a partition
     at one on the 10 000 samples of a 2 s window at 5 kHz; the lower middle value is the

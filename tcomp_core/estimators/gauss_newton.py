@@ -162,7 +162,7 @@ def levenberg_marquardt(
             step = np.linalg.solve(normal + damping * scale, -gradient)
         except np.linalg.LinAlgError:
             return None
-        if damping == 0.0 and used > x.size + 1:
+        if damping == 0.0 and used > x.size + 1:  # after a first step, as least_squares
             # The Gauss–Newton model's lowering of the cost by the step (on ml-eiv's windows at
             # 5 kHz the trials' own lowerings matched it to two digits down to 1e-11 of the
             # cost). Below PREDICTED_SHARE of ftol the trial would end the search on ftol, and
