@@ -45,7 +45,7 @@ class Harness:
         self.executor = executor_factory(context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.peer)
-        self.spin_until(self.executor, lambda: self.pub[0].get_subscription_count() > 0, 5.0)
+        self.spin_until(self.executor, lambda: self.pub[0].get_subscription_count() > 0, 30.0)
 
     def _record_gas(self, message):
         stamp = message.header.stamp
@@ -67,7 +67,7 @@ class Harness:
                 self.send(1, stamps[k], tc2[k])
             self.catch_up()
 
-    def catch_up(self, timeout=10.0):
+    def catch_up(self, timeout=30.0):
         """Spin until the node has received everything sent so far (keeps queues short)."""
         sent = list(self.sent)
         node = self.node
