@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["PREDICTED_SHARE", "SearchResult", "levenberg_marquardt", "normal_matrix"]
+__all__ = ["PREDICTED_SHARE", "SearchResult", "levenberg_marquardt", "normal_matrix", "off_edges"]
 
 #: √eps, the relative step of the forward differences (``least_squares``' "2-point").
 _ROOT_EPS = float(np.sqrt(np.finfo(np.float64).eps))
@@ -170,7 +170,7 @@ def levenberg_marquardt(
             # residual of M rows of noise (½ δᵀJᵀJδ = ½ σ² ‖δ/se‖², cost ≈ M σ²/2): 3e-6 on
             # 10 000 rows. It is not taken, nor its Jacobian made.
             predicted = -float(gradient @ step) - 0.5 * float(step @ normal @ step)
-            if predicted < PREDICTED_SHARE * ftol * cost and _off_edges(x, low, high, edge):
+            if predicted < PREDICTED_SHARE * ftol * cost and off_edges(x, low, high, edge):
                 return _result(x, cost, jacobian, nfev, "ftol, predicted")
         trial = np.clip(x + step, low, high)
         moved = trial - x
@@ -191,7 +191,7 @@ def levenberg_marquardt(
             small_gain = False
             damping = _DAMPING_START if damping == 0.0 else damping * _DAMPING_GROWTH
         if small_step or small_gain:
-            if not _off_edges(x, low, high, edge):
+            if not off_edges(x, low, high, edge):
                 return None
             if jacobian is None:
                 jacobian = forward_jacobian(fun, x, residual, high)
@@ -201,7 +201,7 @@ def levenberg_marquardt(
     return None
 
 
-def _off_edges(
+def off_edges(
     x: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64], edge: float
 ) -> bool:
     """Whether x lies at least ``edge`` inside every bound."""

@@ -71,7 +71,7 @@ from ..noise import estimate_noise, median, model_noise
 from ..tolerance import CLASS2_GAIN, CLASS2_OFFSET_C
 from .beta import MAX_CONDITION, beta_gtls
 from .eiv_noise import noise_moments, sandwich_covariance
-from .gauss_newton import SearchResult, levenberg_marquardt, normal_matrix
+from .gauss_newton import SearchResult, levenberg_marquardt, normal_matrix, off_edges
 from .projection import projected_residual
 from .result import Estimate, estimate_from_poles
 from .toeplitz import ToeplitzWhitening
@@ -510,7 +510,7 @@ def _best(found: Iterable[SearchResult]) -> SearchResult:
 
 def _inside(x: NDArray[np.float64], low: NDArray[np.float64], high: NDArray[np.float64]) -> bool:
     """Whether x lies inside the search range, off its edges (a fit on one fits nothing)."""
-    return bool(np.all(np.minimum(x - low, high - x) >= 1e-6))
+    return off_edges(x, low, high, 1e-6)
 
 
 def _equilibrated_condition(jacobian: NDArray[np.float64]) -> float:
@@ -618,11 +618,7 @@ def _gain_rival(
         if low[2] < h < high[2]
     ]
     fits = [_search(rival_problem, start) for start in starts]
-    inside = [
-        found.x
-        for found in fits
-        if found.success and np.all(np.minimum(found.x - low, high - found.x) >= 1e-6)
-    ]
+    inside = [found.x for found in fits if found.success and _inside(found.x, low, high)]
     if not inside:
         return None
     best = min(inside, key=rival_problem.deviance)
