@@ -189,6 +189,17 @@ class Evaluator:
         """tc1 and tc2 at the working rate."""
         return self.data.tc1, self.data.tc2
 
+    @cached_property
+    def slow_lowpassed(self) -> NDArray[np.float64]:
+        """:meth:`lowpass` of the slow sensor's readings, shape (N,), read-only.
+
+        Every free-run score compares with it: computed once per record instead of once per
+        score (the free-run searches score a few thousand trial models).
+        """
+        values = self.lowpass(self.readings[self.slow - 1])
+        values.flags.writeable = False
+        return values
+
     def fit(self, model: Model, hold: frozenset[str] = frozenset()) -> Model:
         """Fit ``model`` on the estimation blocks (``hold``: parameters kept as they are)."""
         return model.fit(*self._fit_inputs, self.data.training_rows, hold)
@@ -250,8 +261,8 @@ class Evaluator:
 
     def _free_run_error(self, model: Model, keep: NDArray[np.bool_]) -> float:
         """Raw free-run error of the slow sensor on the samples ``keep``, %."""
-        measured, predicted = self._free_run(model)
-        return heldout_error_percent(self.lowpass(measured), self.lowpass(predicted), keep)
+        _, predicted = self._free_run(model)
+        return heldout_error_percent(self.slow_lowpassed, self.lowpass(predicted), keep)
 
     def chosen_by_free_run(self, model: Model) -> frozenset[str]:
         """Parameters of ``model`` chosen by the free-run error: held when others are fitted.
@@ -346,8 +357,8 @@ class Evaluator:
 
         def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
             trial = Model(model.effects, problem.unpack(x))
-            measured, predicted = self._free_run(trial)
-            error = (self.lowpass(measured) - self.lowpass(predicted))[keep] / scale
+            _, predicted = self._free_run(trial)
+            error = (self.slow_lowpassed - self.lowpass(predicted))[keep] / scale
             return np.concatenate([error, problem.residuals(x, penalty_only=True)])
 
         return problem, residuals, int(keep.sum())
@@ -580,8 +591,8 @@ class Evaluator:
         whole criterion; only the staircase's steps need them, see :meth:`with_intervals`);
         the parameters on a bound are always flagged.
         """
-        measured, predicted = self._free_run(model)
-        measured_f, predicted_f = self.lowpass(measured), self.lowpass(predicted)
+        _, predicted = self._free_run(model)
+        measured_f, predicted_f = self.slow_lowpassed, self.lowpass(predicted)
         keep = self.scored_mask(model)
         held_out = self.data.validation & keep
         blocks = []
