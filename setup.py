@@ -43,7 +43,8 @@ setup(
         "numpy>=1.26",
         "scipy>=1.11",
         "rosbags>=0.10",
-        "ruamel.yaml>=0.17",  # metadata.yaml and QoS profiles (rosbags depends on it too)
+        "ruamel.yaml>=0.17",  # QoS profiles and metadata.yaml written (rosbags depends on it too)
+        "PyYAML>=6.0",  # metadata.yaml read (libyaml's parser)
         "zstandard>=0.22",  # MCAP chunk compression (tcomp process reads and writes chunks)
         "lz4>=4.0",
         "matplotlib>=3.8",
@@ -61,6 +62,7 @@ setup(
             "ruff>=0.5",
             "mypy>=2",
             "scipy-stubs>=1.17",
+            "types-PyYAML>=6.0",  # the metadata reader's yaml, for mypy
             "mcap>=1.1",  # a third-party reader of the bags we write
             "pybag-sdk==0.13.0",
         ],

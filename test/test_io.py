@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import shutil
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -495,6 +496,27 @@ def test_corrupt_metadata(good_bag):
     with pytest.raises(DataError, match=r"good/metadata\.yaml: cannot read the file list") as info:
         read_bag(good_bag)
     assert info.value.__cause__ is not None
+
+
+def test_metadata_reads_as_ruamel_reads_it_in_every_bundled_and_written_bag(good_bag):
+    # The metadata reader (libyaml) and ruamel.yaml, which rosbags writes it with, agree on
+    # every bag this project ships or writes.
+    from ruamel.yaml import YAML
+
+    from tcomp_core.io.paths import _load_yaml
+
+    root = Path(__file__).resolve().parents[1] / "bags"
+    files = [*sorted(root.glob("*/metadata.yaml")), good_bag / "metadata.yaml"]
+    assert len(files) > 3
+    for path in files:
+        text = path.read_text()
+        assert _load_yaml(text) == YAML(typ="safe").load(text), path
+
+
+def test_metadata_that_is_no_mapping_is_a_data_error(good_bag):
+    (good_bag / "metadata.yaml").write_text("- just\n- a list\n")
+    with pytest.raises(DataError, match=r"good/metadata\.yaml: cannot read the file list"):
+        read_bag(good_bag)
 
 
 def test_sqlite_bag_is_refused_with_a_hint(good_bag):

@@ -21,6 +21,7 @@ ROSDEP_KEYS = {
     "scipy": "python3-scipy",
     "matplotlib": "python3-matplotlib",
     "ruamel": "python3-ruamel.yaml",
+    "yaml": "python3-yaml",
     "rosbags": "python3-rosbags-pip",
     "tqdm": "python3-tqdm",
     "numba": "python3-numba",
