@@ -156,7 +156,7 @@ def _failure(evaluator: Evaluator, fit: ModelFit) -> FailureAnalysis:
         data.tc1,
         data.tc2,
         evaluator.lowpass(fit.predicted),
-        evaluator.lowpass(measured),
+        evaluator.slow_lowpassed,
         measured - fit.predicted,
         dt=data.dt,
         slow=evaluator.slow,

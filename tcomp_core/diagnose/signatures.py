@@ -44,7 +44,7 @@ def _residual(evaluator: Evaluator, fit: ModelFit) -> tuple[NDArray, NDArray, ND
 
 def _conduction(evaluator: Evaluator, current: ModelFit, fit: ModelFit) -> str:
     p = fit.params
-    measured = evaluator.lowpass(evaluator.readings[evaluator.slow - 1])
+    measured = evaluator.slow_lowpassed
     bands = band_errors(measured, evaluator.lowpass(current.predicted), evaluator.data.dt)
     ratio = bands.residual_to_signal
     # Bands where the slow sensor carries signal: the residual's share of it, low vs high.
