@@ -44,9 +44,9 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Temperature
 
+from tcomp_core.choices import SIGNALS
 from tcomp_core.errors import DataError, TruncatedInputWarning
 from tcomp_core.io import DEFAULT_TOPICS, read_bag
-from tcomp_core.simulate import SIGNALS, simulate_pair
 
 from .spin import shut_down, spin_until_shutdown
 
@@ -184,6 +184,10 @@ class ReplayNode(Node):
         )
 
     def _simulate(self, value: dict[str, Any]) -> None:
+        # Imported here: scipy.signal, which the simulator needs, is most of a second of
+        # start-up that a bag replay (or a refused parameter) does not need.
+        from tcomp_core.simulate import simulate_pair
+
         duration = float(value["duration_s"]) or SIMULATED_LOOP_S
         if not float(value["duration_s"]):
             self.loop = True

@@ -267,3 +267,12 @@ assert set(tcomp_core.__all__) <= set(dir(tcomp_core))
 def test_building_the_parser_loads_no_heavy_library(code):
     heavy = _loaded_after(code) & set(HEAVY)
     assert not heavy, f"{code!r} loaded {sorted(heavy)}"
+
+
+def test_the_replay_node_loads_no_scipy_until_it_simulates():
+    # A bag replay (or a refused parameter) needs no signal processing: scipy is most of a
+    # second of the node's start-up; the simulated source imports it when it runs.
+    assert "scipy" not in _loaded_after("import tcomp_ros.replay")
+    assert "scipy" in _loaded_after(
+        "import tcomp_ros.replay\nfrom tcomp_core.simulate import simulate_pair"
+    )

@@ -236,3 +236,32 @@ def test_landed_estimates_are_bounded_for_a_caller_that_never_takes_them(sine):
     landed = compensator.take_landed()
     assert len(landed) == LANDED_KEPT and landed[-1] is compensator.last_status
     assert compensator.take_landed() == []
+
+
+def test_a_refit_of_the_last_stretch_and_tau_reuses_its_fits(monkeypatch):
+    from tcomp_core.online import kalman
+
+    pair = simulate_pair("multisine", duration=2.0, noise_percent=1.0, seed=4)
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[3:5])
+        return fit_signal_models(*args, **kwargs)
+
+    fit_signal_models = kalman.fit_signal_models
+    monkeypatch.setattr(kalman, "fit_signal_models", counted)
+    monkeypatch.setattr(kalman, "_LAST_FITS", None)
+    segment = np.column_stack((pair.tc1, pair.tc2))
+    empty = (np.empty(0, np.int64), np.empty(0), np.empty(0))
+
+    def request(segment, tau=(pair.tau1, pair.tau2)):
+        return kalman.FilterRequest(pair.dt, tau, "random-walk", segment, None, empty)
+
+    first = kalman.build_filter(request(segment))
+    again = kalman.build_filter(request(segment.copy()))  # the same values, another array
+    assert len(calls) == 1
+    assert again.fuser.model == first.fuser.model and again.refit
+    # Another stretch, or another τ, is fitted.
+    kalman.build_filter(request(segment[1:]))
+    kalman.build_filter(request(segment[1:], tau=(pair.tau1, 1.01 * pair.tau2)))
+    assert len(calls) == 3

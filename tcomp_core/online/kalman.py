@@ -26,6 +26,7 @@ which.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, replace
 
@@ -143,15 +144,7 @@ def build_filter(request: FilterRequest) -> FilterBuild:
         candidates = [replace(request.previous, tau1=tau1, tau2=tau2)]
         fits_note, failures, refit, misfit_warning = "", {}, False, ""
     else:
-        fits = fit_signal_models(
-            request.segment[:, 0],
-            request.segment[:, 1],
-            request.period_s,
-            tau1,
-            tau2,
-            model=request.signal_model,  # type: ignore[arg-type]
-            auto_models=QUICK_MODELS if request.quick else AUTO_MODELS,
-        )
+        fits = _signal_model_fits(request)
         candidates = [model for model, _ in fits.ranked]
         fits_note, failures, refit = "", dict(fits.failures), True
         misfit_warning = fits.misfit_warning
@@ -186,6 +179,43 @@ def build_filter(request: FilterRequest) -> FilterBuild:
         0 if request.segment is None else request.segment.shape[0],
         refit,
     )
+
+
+def _signal_model_fits(request: FilterRequest) -> SignalModelFits:
+    """:func:`~tcomp_core.fusion.fit_signal_models` of a refit request, the last one kept.
+
+    A stream can ask for a refit on the very stretch and τ of the last one (at its end, no new
+    pairs since; a short record fitted whole), and the fit is a pure function of them: the
+    last result is reused instead of fitting the same data again (a fraction of a second to
+    seconds).
+    """
+    global _LAST_FITS
+    segment = np.ascontiguousarray(request.segment, dtype=np.float64)
+    key = (
+        hashlib.blake2b(segment.tobytes(), digest_size=16).digest(),
+        segment.shape,
+        request.period_s,
+        request.tau,
+        request.signal_model,
+        request.quick,
+    )
+    last = _LAST_FITS
+    if last is not None and last[0] == key:
+        return last[1]
+    fits = fit_signal_models(
+        segment[:, 0],
+        segment[:, 1],
+        request.period_s,
+        *request.tau,
+        model=request.signal_model,  # type: ignore[arg-type]
+        auto_models=QUICK_MODELS if request.quick else AUTO_MODELS,
+    )
+    _LAST_FITS = (key, fits)
+    return fits
+
+
+#: The last refit's request key and its fits (:func:`_signal_model_fits`; one per process).
+_LAST_FITS: tuple[tuple, SignalModelFits] | None = None
 
 
 class KalmanReconstructor:
