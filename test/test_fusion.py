@@ -564,3 +564,23 @@ def test_a_step_widens_the_filter_at_once_and_the_widening_survives_a_retune():
     assert fuser.consistency.widened
     _, ahead_std = fuser.predict()
     assert ahead_std > 0.5 * std[-1] > 10.0 * agreeing
+
+
+def test_a_fit_evaluates_each_model_once(monkeypatch):
+    # Each likelihood costs a Riccati solution and a pass over the record: the scan's best
+    # point, where the search starts, and the optima compared at the end are not evaluated
+    # again.
+    import tcomp_core.fusion.fitting as fitting
+
+    evaluated = []
+    original = fitting.innovation_log_likelihood
+
+    def counted(model, y):
+        evaluated.append(model)
+        return original(model, y)
+
+    monkeypatch.setattr(fitting, "innovation_log_likelihood", counted)
+    pair = make_pair("multisine", duration=2.0, noise_percent=1.0, seed=3)
+    fits = fitting.fit_signal_models(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2)
+    assert {model.kind for model, _ in fits.ranked} == set(AUTO_MODELS)
+    assert len(evaluated) == len(set(evaluated)) > 100

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.linalg
@@ -145,10 +145,20 @@ class _Fitting:
     scale: float
     freq_hz: float
     misfit: Misfit
+    _costs: dict[FusionModel, float] = field(default_factory=dict, compare=False, repr=False)
 
     def cost(self, model: FusionModel) -> float:
-        """Negative log-likelihood, nats (finite, for the optimisers)."""
-        return min(-innovation_log_likelihood(model, self.y), FAILED_COST)
+        """Negative log-likelihood, nats (finite, for the optimisers).
+
+        Remembered per model: a search starts where a scan already evaluated, and the fitted
+        models are compared again at their optima (about one evaluation in thirty).
+        """
+        known = self._costs.get(model)
+        if known is None:
+            known = self._costs[model] = min(
+                -innovation_log_likelihood(model, self.y), FAILED_COST
+            )
+        return known
 
 
 def _random_walk_model(fit: _Fitting, kind: ModelKind, theta: Theta) -> FusionModel:
