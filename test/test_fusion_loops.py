@@ -112,6 +112,52 @@ def test_the_modal_likelihood_is_the_forward_pass_likelihood(kind):
     assert compared >= 50
 
 
+@pytest.mark.parametrize("kind", ["multisine", "exhaust"])
+def test_the_likelihood_reuses_the_closed_loops_modes_to_the_bit(kind):
+    # The stability check's eigen-decomposition is handed to the modal likelihood, and V⁻¹ on
+    # to the initial state's equations, instead of being computed again: the same value.
+    fit = fitting_of(kind)
+    rng = np.random.default_rng(5)
+    compared = 0
+    for model in models(fit):
+        space = model.state_space()
+        try:
+            gains, modes = kalman._steady_state(space, modes=True)
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        np.testing.assert_array_equal(gains.gain, kalman.steady_state(space).gain)
+        if modes is None:
+            continue
+        reused = kalman._modal_log_likelihood(space, gains, fit.y, modes)
+        assert reused == kalman._modal_log_likelihood(space, gains, fit.y), model
+        eigenvalues, vectors = modes
+        condition = float(np.linalg.cond(vectors))
+        if reused is None or condition > kalman.MAX_EIGENVECTOR_CONDITION:
+            continue
+        whitened = rng.standard_normal(fit.y.shape)
+        given = (eigenvalues, vectors, condition, np.linalg.inv(vectors))
+        for mine, theirs in zip(
+            kalman._initial_state_equations(gains, whitened, given),
+            kalman._initial_state_equations(gains, whitened),
+            strict=True,
+        ):
+            assert mine.tobytes() == theirs.tobytes(), model
+        compared += 1
+    assert compared >= 20
+
+
+def test_the_symmetric_pseudo_inverse_is_numpys_to_the_bit():
+    rng = np.random.default_rng(11)
+    for trial in range(600):
+        n = int(rng.integers(1, 12))
+        factor = rng.standard_normal((n, max(1, n - trial % 3))) * 10.0 ** rng.uniform(-6, 6)
+        matrix = factor @ factor.T  # full rank, or short of it by one or two
+        if trial % 5 == 0:
+            matrix -= rng.uniform(0.0, 2.0) * np.abs(matrix).max() * np.eye(n)  # indefinite
+        expected = np.linalg.pinv(matrix, rcond=1e-13, hermitian=True)
+        assert kalman._pinv_symmetric(matrix, 1e-13).tobytes() == expected.tobytes(), matrix
+
+
 def test_the_compiled_loops_compute_what_python_computes():
     """numba's kernels against the same functions run by Python, on a band-limited model."""
     fit = fitting_of("multisine")

@@ -72,16 +72,35 @@ def steady_state(model: StateSpace) -> SteadyState:
     numpy.linalg.LinAlgError, ValueError
         If the Riccati equation has no stabilising solution (scipy's errors).
     """
+    return _steady_state(model, modes=False)[0]
+
+
+#: The closed loop's eigenvalues and eigenvectors (``np.linalg.eig``'s result).
+_Modes = tuple[NDArray[np.complex128], NDArray[np.complex128]]
+
+
+def _steady_state(model: StateSpace, modes: bool) -> tuple[SteadyState, _Modes | None]:
+    """:func:`steady_state`, and with ``modes`` the closed loop's eigen-decomposition.
+
+    The doubled solution is taken when its closed loop decays; the likelihood needs that
+    loop's eigenvectors as well (:func:`_modal_log_likelihood`), so with ``modes`` the check
+    reads the eigenvalues of ``np.linalg.eig`` and hands the decomposition on (None where
+    scipy's solver gave the gains) instead of a second decomposition of the same matrix.
+    """
     f, h = model.transition, model.observation
     doubled = riccati_by_doubling(f, h, model.covariance, model.noise)
     if doubled is not None:
         gains = _gains(model, doubled)
-        if np.max(np.abs(np.linalg.eigvals(gains.closed_loop))) < 1.0:
-            return gains
+        if modes:
+            eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
+            if np.max(np.abs(eigenvalues)) < 1.0:
+                return gains, (eigenvalues, vectors)
+        elif np.max(np.abs(np.linalg.eigvals(gains.closed_loop))) < 1.0:
+            return gains, None
     predicted = np.asarray(
         scipy.linalg.solve_discrete_are(f.T, h.T, model.covariance, model.noise), dtype=np.float64
     )
-    return _gains(model, 0.5 * (predicted + predicted.T))
+    return _gains(model, 0.5 * (predicted + predicted.T)), None
 
 
 def _gains(model: StateSpace, predicted: NDArray[np.float64]) -> SteadyState:
@@ -167,23 +186,48 @@ def _gaussian_log_likelihood(sum_of_squares: float, count: int, covariance: NDAr
     return -0.5 * (count * (logdet + 2.0 * math.log(2.0 * math.pi)) + sum_of_squares)
 
 
+#: The closed loop's eigenvalues, eigenvectors, their condition number and their inverse.
+_Eigen = tuple[NDArray[np.complex128], NDArray[np.complex128], float, NDArray[np.complexfloating]]
+
+
 def _profile_log_likelihood(
     gains: SteadyState,
     whitened: NDArray[np.float64],
     sum_of_squares: float,
-    eigen: tuple[NDArray[np.complex128], NDArray[np.complex128], float] | None = None,
+    eigen: _Eigen | None = None,
 ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
     """Log-likelihood with the initial state at its GLS estimate, the estimate and its covariance.
 
     ``whitened`` (2, N) are the innovations from a zero initial state, whitened; ``eigen`` the
-    closed loop's eigenvalues, eigenvectors and their condition number when the caller has them.
+    closed loop's eigenvalues, eigenvectors, their condition number and their inverse when the
+    caller has them.
     """
     normal, projection = _initial_state_equations(gains, whitened, eigen)
-    covariance = np.asarray(np.linalg.pinv(normal, rcond=1e-13, hermitian=True), np.float64)
+    covariance = _pinv_symmetric(normal, 1e-13)
     estimate = covariance @ projection
     # Σ|w - D x̂|² = Σ|w|² - pᵀ x̂ at the least-squares x̂ (p = Dᵀ w).
     log_likelihood = _gaussian_log_likelihood(sum_of_squares, whitened.shape[1], gains.innovation)
     return log_likelihood + 0.5 * float(projection @ estimate), estimate, covariance
+
+
+def _pinv_symmetric(matrix: NDArray[np.float64], rcond: float) -> NDArray[np.float64]:
+    """``np.linalg.pinv(matrix, rcond, hermitian=True)`` of a real symmetric (n, n) matrix.
+
+    numpy's own steps (``eigh``, the eigenvalues by decreasing magnitude, their signs moved
+    into the right factor, those below ``rcond`` times the largest dropped) in its order, so
+    the result is the same to the bit, without the checks and the stacking around them: they
+    took most of the call's ~60 µs, once per likelihood evaluation.
+    """
+    values, vectors = np.linalg.eigh(matrix)
+    signs = np.copysign(1.0, values)
+    values = np.abs(values)
+    order = np.argsort(values)[::-1]
+    signs, values, vectors = signs[order], values[order], vectors[:, order]
+    right = np.transpose(vectors * signs[None, :])
+    large = values > rcond * np.max(values)
+    values = np.divide(1, values, where=large, out=values)
+    values[~large] = 0
+    return np.matmul(np.transpose(right), np.multiply(values[:, None], np.transpose(vectors)))
 
 
 def forward_pass(
@@ -226,15 +270,15 @@ def forward_pass(
 def _initial_state_equations(
     gains: SteadyState,
     whitened: NDArray[np.float64],
-    eigen: tuple[NDArray[np.complex128], NDArray[np.complex128], float] | None = None,
+    eigen: _Eigen | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Normal equations ``DᵀD x_0 = Dᵀ w`` of the initial state, D_k = L⁻¹ H A^k.
 
     With ``A = V Λ V⁻¹``, ``D_k = Σ_i a_i λ_i^k b_iᵀ`` (a_i = L⁻¹ H V e_i, b_i the i-th row
     of V⁻¹), so ``DᵀD`` is a sum of geometric series and ``Dᵀw`` needs ``Σ_k λ̄_i^k w_k``
     (:func:`~tcomp_core.fusion.loops.discounted_sums`): O(N n) work without forming D. Falls
-    back to forming D when V is ill conditioned. ``eigen`` is (Λ, V, cond V) of the closed loop
-    when the caller has it.
+    back to forming D when V is ill conditioned. ``eigen`` is (Λ, V, cond V, V⁻¹) of the closed
+    loop when the caller has it.
 
     Returns
     -------
@@ -242,18 +286,20 @@ def _initial_state_equations(
     projection : ndarray, shape (n,)
     """
     count = whitened.shape[1]
+    rows = None
     if eigen is None:
         eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
         condition = float(np.linalg.cond(vectors))
     else:
-        eigenvalues, vectors, condition = eigen
+        eigenvalues, vectors, condition, rows = eigen
     if condition > MAX_EIGENVECTOR_CONDITION:
         length = decay_horizon(gains.closed_loop, count)
         powers = matrix_powers(gains.closed_loop, length, slice(-2, None))  # (2, L, n)
         design = _whiten(powers, gains.innovation)
         normal = np.einsum("rki,rkj->ij", design, design)
         return normal, np.einsum("rki,rk->i", design, whitened[:, :length])
-    rows = np.linalg.inv(vectors)
+    if rows is None:
+        rows = np.linalg.inv(vectors)
     columns = _whiten(vectors[-2:], gains.innovation)  # a_i as columns, (2, n)
     ratio = eigenvalues.conj()[:, None] * eigenvalues[None, :]
     near_one = np.abs(1.0 - ratio) < 1e-12
@@ -269,8 +315,8 @@ def innovation_log_likelihood(model: FusionModel, y: NDArray[np.float64]) -> flo
     """Profile log-likelihood of the innovations, nats (−inf where the Riccati equation fails)."""
     space = model.state_space()
     try:
-        gains = steady_state(space)
-        value = _modal_log_likelihood(space, gains, y)
+        gains, modes = _steady_state(space, modes=True)
+        value = _modal_log_likelihood(space, gains, y, modes)
         if value is None:
             value = forward_pass(space, gains, y, None, states=False).log_likelihood
     except (np.linalg.LinAlgError, ValueError):
@@ -279,16 +325,17 @@ def innovation_log_likelihood(model: FusionModel, y: NDArray[np.float64]) -> flo
 
 
 def _modal_log_likelihood(
-    space: StateSpace, gains: SteadyState, y: NDArray[np.float64]
+    space: StateSpace, gains: SteadyState, y: NDArray[np.float64], modes: _Modes | None = None
 ) -> float | None:
     """:func:`forward_pass`'s log-likelihood (x_0 estimated) run in the closed loop's eigenbasis.
 
     One compiled pass over the samples (:func:`~tcomp_core.fusion.loops.modal_innovations`)
     instead of a filter call per mode; the same sums in another order. None where the
     eigenvectors are too ill conditioned for the modes (:data:`~.recursion.MODAL_CONDITION`):
-    :func:`forward_pass` then runs in the Schur basis.
+    :func:`forward_pass` then runs in the Schur basis. ``modes`` is the closed loop's
+    eigen-decomposition when the caller has it.
     """
-    eigenvalues, vectors = np.linalg.eig(gains.closed_loop)
+    eigenvalues, vectors = np.linalg.eig(gains.closed_loop) if modes is None else modes
     condition = float(np.linalg.cond(vectors))
     if condition > MODAL_CONDITION:
         return None
@@ -300,5 +347,5 @@ def _modal_log_likelihood(
     whitened, sum_of_squares = modal_innovations(
         eigenvalues[kept], drive, read, y, _cholesky(gains.innovation)
     )
-    eigen = (eigenvalues, vectors, condition)
+    eigen = (eigenvalues, vectors, condition, inverse)
     return _profile_log_likelihood(gains, whitened, sum_of_squares, eigen)[0]
