@@ -204,8 +204,8 @@ class Evaluator:
         """Fit ``model`` on the estimation blocks (``hold``: parameters kept as they are)."""
         return model.fit(*self._fit_inputs, self.data.training_rows, hold)
 
-    def _free_run(self, model: Model) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The slow sensor's readings and its free-run simulation from the fast one.
+    def _free_run(self, model: Model) -> NDArray[np.float64]:
+        """The slow sensor's free-run simulation from the fast one's readings, shape (N,).
 
         The simulation is put at the level the estimation blocks give it (their mean
         difference): the cross-relation's level difference is a weighted mean of the
@@ -242,7 +242,7 @@ class Evaluator:
                 break
             previous, shift = shift, self._level_shift(model, measured[train] - predicted[train])
             moved = abs(shift - previous)
-        return measured, predicted + shift
+        return predicted + shift
 
     def _level_shift(self, model: Model, difference: NDArray[np.float64]) -> float:
         """The level the simulation is moved by: the mean ``difference`` (0 if not finite).
@@ -261,7 +261,7 @@ class Evaluator:
 
     def _free_run_error(self, model: Model, keep: NDArray[np.bool_]) -> float:
         """Raw free-run error of the slow sensor on the samples ``keep``, %."""
-        _, predicted = self._free_run(model)
+        predicted = self._free_run(model)
         return heldout_error_percent(self.slow_lowpassed, self.lowpass(predicted), keep)
 
     def chosen_by_free_run(self, model: Model) -> frozenset[str]:
@@ -357,7 +357,7 @@ class Evaluator:
 
         def residuals(x: NDArray[np.float64]) -> NDArray[np.float64]:
             trial = Model(model.effects, problem.unpack(x))
-            _, predicted = self._free_run(trial)
+            predicted = self._free_run(trial)
             error = (self.slow_lowpassed - self.lowpass(predicted))[keep] / scale
             return np.concatenate([error, problem.residuals(x, penalty_only=True)])
 
@@ -473,7 +473,7 @@ class Evaluator:
         covariance = parameter_covariance(model, *self._fit_inputs)
         if polished:
             covariance = covariance.with_block(self.free_run_covariance(model, polished))
-        _, predicted = self._free_run(model)
+        predicted = self._free_run(model)
         gas1, gas2 = model.reconstruct(*self.readings, self.context)
         identification = None
         base_taus = self.start_taus_s or self.context.base_taus_s
@@ -591,7 +591,7 @@ class Evaluator:
         whole criterion; only the staircase's steps need them, see :meth:`with_intervals`);
         the parameters on a bound are always flagged.
         """
-        _, predicted = self._free_run(model)
+        predicted = self._free_run(model)
         measured_f, predicted_f = self.slow_lowpassed, self.lowpass(predicted)
         keep = self.scored_mask(model)
         held_out = self.data.validation & keep
