@@ -28,6 +28,7 @@ scripts and ``python -m`` do), else every job reports that the worker died.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import multiprocessing
 import os
 from collections.abc import Callable
@@ -47,8 +48,9 @@ __all__ = [
 ]
 
 #: What the fork server imports before it forks workers: the caller's main script (where a job's
-#: function may live, as ``spawn`` imports it) and the numerical core the jobs run.
-WORKER_PRELOAD = ("__main__", "tcomp_core.diagnose", "tcomp_core.fusion")
+#: function may live, as ``spawn`` imports it), and the numerical core the jobs run with numba's
+#: compiler ready (:mod:`tcomp_core.worker_preload`).
+WORKER_PRELOAD = ("__main__", "tcomp_core.worker_preload")
 #: The worker runs this much nicer than its caller: on a small machine the real-time work of
 #: the caller comes first and the jobs take the spare CPU.
 WORKER_NICENESS = 10
@@ -329,8 +331,12 @@ _WARMED_UP = "tcomp worker ready"
 
 
 def _warm_up() -> str:
-    """The worker's first task: import the numerical core so that jobs start at once."""
-    import tcomp_core.diagnose
-    import tcomp_core.fusion  # noqa: F401
+    """The worker's first task: the core imported, so that jobs start at once.
+
+    Forked from the fork server it is there already; a spawned worker (no fork server)
+    imports it here, by name as the server does (the core's modules run jobs on this one).
+    """
+    for name in WORKER_PRELOAD[1:]:
+        importlib.import_module(name)
 
     return _WARMED_UP
