@@ -56,11 +56,16 @@ def warm_compiler() -> bool:
     Returns
     -------
     bool
-        Whether numba is installed (False: nothing to warm, the loops run as Python).
+        Whether the contexts are built (False without numba, or where the trivial compile
+        fails: the warm-up is only a saving, and the fork server must start all the same; a
+        loop that cannot compile then fails where it runs, with its own error).
     """
     try:
         import numba
     except ImportError:  # pragma: no cover - numba is a dependency
         return False
-    numba.njit(_increment)(0.0)  # not cached: the contexts are what is wanted, not the code
+    try:
+        numba.njit(_increment)(0.0)  # not cached: the contexts are wanted, not the code
+    except Exception:  # pragma: no cover - a broken numba or LLVM install
+        return False
     return True

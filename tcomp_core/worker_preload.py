@@ -8,10 +8,7 @@ before this module existed, in each of the node's two workers and again after on
 
 from __future__ import annotations
 
-import tcomp_core.diagnose
-import tcomp_core.fusion
-import tcomp_core.online  # noqa: F401  (the node's jobs are its functions)
-
+from . import diagnose, fusion, online  # noqa: F401  (the jobs' modules; online: the node's)
 from .compiled import warm_compiler
 
 warm_compiler()

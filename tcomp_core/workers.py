@@ -334,7 +334,8 @@ def _warm_up() -> str:
     """The worker's first task: the core imported, so that jobs start at once.
 
     Forked from the fork server it is there already; a spawned worker (no fork server)
-    imports it here, by name as the server does (the core's modules run jobs on this one).
+    imports it here, by name as the server does: the core's own modules use this runner, so
+    an import statement here would close an import cycle.
     """
     for name in WORKER_PRELOAD[1:]:
         importlib.import_module(name)
