@@ -62,6 +62,7 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) bench/bench_startup.py
+	$(PY) bench/bench_worker_start.py
 	$(PY) bench/bench_bag_open.py
 	$(PY) bench/bench_scatter_vs_svd.py
 	$(PY) bench/bench_accuracy.py

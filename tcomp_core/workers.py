@@ -50,7 +50,7 @@ __all__ = [
 #: What the fork server imports before it forks workers: the caller's main script (where a job's
 #: function may live, as ``spawn`` imports it), and the numerical core the jobs run with numba's
 #: compiler ready (:mod:`tcomp_core.worker_preload`).
-WORKER_PRELOAD = ("__main__", "tcomp_core.worker_preload")
+WORKER_PRELOAD: tuple[str, ...] = ("__main__", "tcomp_core.worker_preload")
 #: The worker runs this much nicer than its caller: on a small machine the real-time work of
 #: the caller comes first and the jobs take the spare CPU.
 WORKER_NICENESS = 10
