@@ -45,7 +45,7 @@ BASELINE_PRELOAD = ("__main__", "tcomp_core.diagnose", "tcomp_core.fusion")
 BASELINE_VARIABLE = "BENCH_WORKER_PRELOAD_BASELINE"
 if os.environ.get(BASELINE_VARIABLE):
     job_workers.WORKER_PRELOAD = BASELINE_PRELOAD
-#: The simulated pair: 2 s at 1 kHz of a 5 Hz sine through the paper's two lags, K ≈ 0.4 %.
+#: The simulated pair: 2 s at 1 kHz of a 5 Hz sine through the paper's two lags, 0.05 °C of noise.
 SAMPLES, DT, TAUS = 2000, 1e-3, (0.0238, 0.1168)
 
 
