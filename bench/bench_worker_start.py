@@ -31,10 +31,12 @@ import statistics
 import subprocess
 import sys
 import time
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from tcomp_core import workers as job_workers
+
+if TYPE_CHECKING:
+    from tcomp_core.simulate import SimulatedPair
 
 #: The fork server's preload before :mod:`tcomp_core.worker_preload` existed.
 BASELINE_PRELOAD = ("__main__", "tcomp_core.diagnose", "tcomp_core.fusion")
@@ -45,26 +47,18 @@ BASELINE_PRELOAD = ("__main__", "tcomp_core.diagnose", "tcomp_core.fusion")
 BASELINE_VARIABLE = "BENCH_WORKER_PRELOAD_BASELINE"
 if os.environ.get(BASELINE_VARIABLE):
     job_workers.WORKER_PRELOAD = BASELINE_PRELOAD
-#: The simulated pair: 2 s at 1 kHz of a 5 Hz sine through the paper's two lags, 0.05 °C of noise.
-SAMPLES, DT, TAUS = 2000, 1e-3, (0.0238, 0.1168)
+#: The simulated pair: 2 s at 1 kHz of the paper's sinusoid, K = 1 %, the paper's τ.
+DT, DURATION_S, NOISE_PERCENT = 1e-3, 2.0, 1.0
 
 
-def _pair() -> tuple[np.ndarray, np.ndarray]:
-    rng = np.random.default_rng(20261206)
-    time_s = np.arange(SAMPLES) * DT
-    gas = 300.0 + 20.0 * np.sin(2.0 * np.pi * 5.0 * time_s)
-    readings = []
-    for tau in TAUS:
-        pole = np.exp(-DT / tau)
-        lagged = np.empty(SAMPLES)
-        lagged[0] = gas[0]
-        for k in range(1, SAMPLES):
-            lagged[k] = pole * lagged[k - 1] + (1.0 - pole) * gas[k - 1]
-        readings.append(lagged + rng.normal(0.0, 0.05, SAMPLES))
-    return readings[0], readings[1]
+def _pair() -> SimulatedPair:
+    # Imported here: the fork server imports this script, and its own CPU is one of the figures.
+    from tcomp_core.simulate import simulate_pair
+
+    return simulate_pair("sinusoid", dt=DT, duration=DURATION_S, noise_percent=NOISE_PERCENT)
 
 
-def _two_fits(tc1: np.ndarray, tc2: np.ndarray) -> tuple[float, float, float]:
+def _two_fits(pair: SimulatedPair) -> tuple[float, float, float]:
     """The job: the worker's CPU before it (since its fork: its start-up job, the imports its
     arguments needed), then for a first and a second identical signal-model fit, s."""
     times = [time.process_time()]
@@ -72,7 +66,7 @@ def _two_fits(tc1: np.ndarray, tc2: np.ndarray) -> tuple[float, float, float]:
 
     for _ in range(2):
         started = time.process_time()
-        fit_signal_models(tc1, tc2, DT, *TAUS)
+        fit_signal_models(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2)
         times.append(time.process_time() - started)
     return times[0], times[1], times[2]
 
@@ -88,12 +82,12 @@ def _child(workers: int) -> dict:
     """Run ``workers`` fresh workers, one after another; their CPU and the fork server's."""
     import multiprocessing.forkserver
 
-    tc1, tc2 = _pair()
+    pair = _pair()
     fits = []
     for _ in range(workers):
         runner = job_workers.ProcessRunner()
         try:
-            if not runner.submit(_two_fits, tc1, tc2):
+            if not runner.submit(_two_fits, pair):
                 raise RuntimeError("the runner refused the job")
             outcome = None
             while outcome is None:
