@@ -10,6 +10,7 @@ functions run as Python, with the same results.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from typing import Any
 
@@ -46,26 +47,19 @@ def _increment(value: float) -> float:
     return value + 1.0
 
 
-def warm_compiler() -> bool:
+def warm_compiler() -> None:
     """Import numba and build its typing and target contexts, by compiling a trivial function.
 
     A process that compiles (or loads from the disk cache) its first loop spends about 0.35 s
     of CPU on this first. The fork server does it once before it forks workers
-    (:mod:`tcomp_core.worker_preload`), so each worker loads its loops at once.
-
-    Returns
-    -------
-    bool
-        Whether the contexts are built (False without numba, or where the trivial compile
-        fails: the warm-up is only a saving, and the fork server must start all the same; a
-        loop that cannot compile then fails where it runs, with its own error).
+    (:mod:`tcomp_core.worker_preload`), so each worker loads its loops at once. Without numba,
+    or where the trivial compile fails, nothing is done: the warm-up is only a saving and the
+    fork server must start all the same (a loop that cannot compile then fails where it runs,
+    with its own error).
     """
     try:
         import numba
     except ImportError:  # pragma: no cover - numba is a dependency
-        return False
-    try:
+        return
+    with contextlib.suppress(Exception):  # a broken numba or LLVM install
         numba.njit(_increment)(0.0)  # not cached: the contexts are wanted, not the code
-    except Exception:  # pragma: no cover - a broken numba or LLVM install
-        return False
-    return True
