@@ -10,13 +10,19 @@ resident memory (``os.wait4``'s ``ru_maxrss`` of that child):
 - ``whole``: ``--whole`` on the 10-minute bag, the baseline (what ``tcomp diagnose`` did
   before it streamed windows; not run on the one-hour bag, which would need ~28 GB);
 - ``windows``: the default on the 10-minute bag (windows of 60 s, chosen automatically);
-- ``windows``: the default on the one-hour bag.
+- ``windows``: the default on the one-hour bag;
+- ``jobs N`` (with ``--jobs N``): the default windows diagnosed in N worker processes
+  (``tcomp diagnose --jobs N``), on each bag, beside the one-process run of the same bag.
+
+With worker processes the peak resident memory is the largest sum over the child and its
+descendants, sampled every 0.2 s from ``/proc`` (``ru_maxrss`` is one process's).
 
 It prints a table with the ratios against the baseline and whether the 10-minute bag's verdict
 and τ agree between the whole record and its windows (the median over the windows giving the
 verdict), and the resident memory per minute of record of each run.
 
-Usage: ``python bench/bench_diagnose_long.py [--window-s 60] [--no-long] [--no-whole]``.
+Usage: ``python bench/bench_diagnose_long.py [--window-s 60] [--no-long] [--no-whole]
+[--jobs 2]``.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,8 +76,49 @@ def cached_bag(cache: Path, minutes: float) -> Path:
     return path
 
 
+def _tree_rss_mib(root: int) -> float:
+    """Resident memory of process ``root`` and all its descendants, MiB (from ``/proc``)."""
+    parents: dict[int, int] = {}
+    resident: dict[int, float] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            pages = int((entry / "statm").read_text().split()[1])
+        except (OSError, IndexError, ValueError):  # the process ended meanwhile
+            continue
+        parents[int(entry.name)] = int(fields[1])
+        resident[int(entry.name)] = pages * os.sysconf("SC_PAGE_SIZE") / MIB / MIB
+    tree, grown = {root}, True
+    while grown:
+        grown = False
+        for pid, parent in parents.items():
+            if parent in tree and pid not in tree:
+                tree.add(pid)
+                grown = True
+    return sum(resident.get(pid, 0.0) for pid in tree)
+
+
+class _TreeSampler(threading.Thread):
+    """Samples the largest resident memory of a process tree every 0.2 s."""
+
+    def __init__(self, root: int) -> None:
+        super().__init__(daemon=True)
+        self.root, self.peak_mib = root, 0.0
+        self.done = threading.Event()
+
+    def run(self) -> None:
+        while not self.done.wait(0.2):
+            self.peak_mib = max(self.peak_mib, _tree_rss_mib(self.root))
+
+
 def diagnose_in_child(name: str, bag: Path, minutes: float, options: list[str]) -> Run:
-    """Run ``tcomp diagnose`` in a child process; its wall time, peak RSS and result."""
+    """Run ``tcomp diagnose`` in a child process; its wall time, peak RSS and result.
+
+    The peak is the child's own (``ru_maxrss``), or the sampled peak of the child and its
+    descendants when that is larger (worker processes).
+    """
     with tempfile.TemporaryDirectory() as scratch:
         out = Path(scratch) / "diagnosis.json"
         command = [sys.executable, "-m", "tcomp_core.cli", "diagnose", str(bag)]
@@ -81,15 +129,19 @@ def diagnose_in_child(name: str, bag: Path, minutes: float, options: list[str]) 
         )
         started = time.perf_counter()
         child = subprocess.Popen(command, env=environment, stdout=subprocess.PIPE, text=True)
+        sampler = _TreeSampler(child.pid)
+        sampler.start()
         assert child.stdout is not None
         printed = child.stdout.read()
+        sampler.done.set()
+        sampler.join()
         _, status, usage = os.wait4(child.pid, 0)
         child.returncode = os.waitstatus_to_exitcode(status)
         seconds = time.perf_counter() - started
         if child.returncode != 0:
             raise SystemExit(f"{' '.join(command)} failed ({child.returncode}):\n{printed}")
         document = json.loads(out.read_text())
-    peak = usage.ru_maxrss / MIB  # kB on Linux
+    peak = max(usage.ru_maxrss / MIB, sampler.peak_mib)  # ru_maxrss: kB on Linux
     if "windows" in document:  # the whole verdict and τ drawn from the windows
         taus = [document[name] for name in ("tau1", "tau2")]
         found = [tau["median"] for tau in taus]
@@ -122,16 +174,30 @@ def main() -> None:
     )
     parser.add_argument("--no-long", action="store_true", help="skip the one-hour bag")
     parser.add_argument("--no-whole", action="store_true", help="skip the whole-record baseline")
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="also diagnose each bag's windows in N processes"
+    )
     args = parser.parse_args()
     args.cache.mkdir(parents=True, exist_ok=True)
     short = cached_bag(args.cache, args.short_minutes)
     long = None if args.no_long else cached_bag(args.cache, args.long_minutes)
     windowed = [] if args.window_s is None else ["--window-s", f"{args.window_s:g}"]
     runs: list[Run] = []
+    parallel = [] if args.jobs == 1 else ["--jobs", str(args.jobs)]
     plan = [
         *([] if args.no_whole else [("whole", short, args.short_minutes, ["--whole"])]),
         ("windows", short, args.short_minutes, windowed),
+        *(
+            [(f"jobs {args.jobs}", short, args.short_minutes, windowed + parallel)]
+            if parallel
+            else []
+        ),
         *([] if long is None else [("windows", long, args.long_minutes, windowed)]),
+        *(
+            [(f"jobs {args.jobs}", long, args.long_minutes, windowed + parallel)]
+            if parallel and long is not None
+            else []
+        ),
     ]
     for name, bag, minutes, options in plan:
         print(f"running {name} on {bag.name} ...", flush=True)
@@ -152,6 +218,16 @@ def main() -> None:
             f"{run.name:<8} {run.minutes:>5g} m {run.windows:>7} {run.seconds:>8.1f} "
             f"{run.peak_mib:>8.0f} {run.peak_mib / run.minutes:>7.1f} {ratios}  "
             f"{run.verdict:<10} {run.tau1:>9.5g} {run.tau2:>9.5g}"
+        )
+    for run in runs:
+        if not run.name.startswith("jobs"):
+            continue
+        alone = next(r for r in runs if r.name == "windows" and r.minutes == run.minutes)
+        same = (run.verdict, run.tau1, run.tau2) == (alone.verdict, alone.tau1, alone.tau2)
+        print(
+            f"{run.minutes:g}-minute bag in {args.jobs} processes against one: "
+            f"{alone.seconds / run.seconds:.2f}x faster, {run.peak_mib / alone.peak_mib:.2f}x "
+            f"the memory, verdict and tau {'identical' if same else 'DIFFERENT'}"
         )
     if baseline is not None:
         same = next(run for run in runs[1:] if run.minutes == baseline.minutes)

@@ -45,6 +45,7 @@ __all__ = [
     "Outcome",
     "ProcessRunner",
     "ThreadRunner",
+    "worker_context",
 ]
 
 #: What the fork server imports before it forks workers: the caller's main script (where a job's
@@ -182,8 +183,10 @@ def _start_worker(pin_heap: bool) -> None:
         pin_mmap_threshold()
 
 
-def _worker_context() -> multiprocessing.context.BaseContext:
+def worker_context() -> multiprocessing.context.BaseContext:
     """The fork server's context, the core preloaded (the server is one per process).
+
+    For :class:`ProcessRunner` and for pools of workers (``tcomp diagnose --jobs``).
 
     ``spawn`` where the platform has no fork server (Windows).
     """
@@ -247,7 +250,7 @@ class ProcessRunner:
         if self._pool is None:
             self._pool = ProcessPoolExecutor(
                 max_workers=1,
-                mp_context=_worker_context(),
+                mp_context=worker_context(),
                 initializer=_start_worker,
                 initargs=(self._pin_heap,),
             )

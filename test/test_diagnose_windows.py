@@ -9,15 +9,25 @@ of invalid samples, a gap) are reported in their own rows while the others carry
 
 from __future__ import annotations
 
+import functools
 import json
 import math
+import os
+import signal
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from tcomp_core.cli import main
-from tcomp_core.diagnose.windowed import WindowResult, diagnose_windows, whole_verdict
+from tcomp_core.diagnose.window_pool import MAX_ATTEMPTS, diagnose_in_processes
+from tcomp_core.diagnose.windowed import (
+    WindowResult,
+    diagnose_window,
+    diagnose_windows,
+    whole_verdict,
+)
 from tcomp_core.io import (
     DEFAULT_TOPICS,
     TEMPERATURE_TYPE,
@@ -28,7 +38,7 @@ from tcomp_core.io import (
     write_bag,
     write_csv,
 )
-from tcomp_core.io.windows import LATE_S, WindowReader
+from tcomp_core.io.windows import LATE_S, Window, WindowReader
 from tcomp_core.simulate_effects import simulate_effect
 
 PAPER = (0.0238, 0.1168)
@@ -171,6 +181,53 @@ def test_a_window_with_a_broken_run_or_a_gap_says_so_and_the_others_carry_on(tmp
     assert result.whole.verdict == "none" and result.whole.voting == 3
 
 
+@pytest.mark.slow
+def test_windows_diagnosed_in_worker_processes_give_the_rows_diagnosed_here(tmp_path):
+    data, _ = _effect_csv(tmp_path, "delay", 30.0, seed=43)
+    here = diagnose_windows(
+        WindowReader(data, 10.0), source=str(data), window_s=10.0, candidates=("delay",)
+    )
+    there = diagnose_windows(
+        WindowReader(data, 10.0),
+        source=str(data),
+        window_s=10.0,
+        diagnose_all=lambda windows: diagnose_in_processes(windows, 2, ("delay",)),
+    )
+    assert [row.verdict for row in there.windows] == ["delay"] * 3
+    assert there == here  # every figure of every row, and the whole verdict
+
+
+def _die_on(marker: Path, index: int, always: bool, window, candidates, max_effects):
+    """diagnose_window, but window ``index`` kills its worker (once, or every time)."""
+    if window.index == index and (always or not marker.exists()):
+        marker.touch()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return diagnose_window(window, candidates, max_effects)
+
+
+def _problem_windows(count):
+    """Windows without a record: their rows (the reader's problem) cost nothing to make."""
+    return [
+        Window(index=i, start_s=10.0 * i, length_s=10.0, samples=0, record=None, problem=f"p{i}")
+        for i in range(count)
+    ]
+
+
+def test_a_worker_that_dies_loses_no_window_and_one_that_always_dies_is_reported(tmp_path):
+    once = functools.partial(_die_on, tmp_path / "died", 1, False)
+    rows = list(diagnose_in_processes(_problem_windows(6), 2, diagnose=once))
+    assert (tmp_path / "died").exists()  # a worker did die
+    assert [row.index for row in rows] == list(range(6))
+    assert [row.problem for row in rows] == [f"p{i}" for i in range(6)]
+    always = functools.partial(_die_on, tmp_path / "died_again", 2, True)
+    rows = list(diagnose_in_processes(_problem_windows(5), 2, diagnose=always))
+    assert [row.index for row in rows] == list(range(5))
+    assert f"died {MAX_ATTEMPTS} times" in rows[2].problem and rows[2].verdict is None
+    assert [rows[i].problem for i in (0, 1, 3, 4)] == ["p0", "p1", "p3", "p4"]
+    with pytest.raises(ValueError, match="jobs=0"):
+        next(diagnose_in_processes(_problem_windows(1), 0))
+
+
 def _row(index, verdict, tau=(0.02, 0.1), length=10.0):
     return WindowResult(
         index=index,
@@ -219,6 +276,8 @@ def test_cli_prints_the_window_table_and_writes_the_json(tmp_path, capsys):
             "delay",
             "--max-effects",
             "1",
+            "--jobs",
+            "2",
             "--json",
             str(out),
             "--report",
@@ -246,3 +305,4 @@ def test_cli_refuses_a_window_that_is_not_positive(tmp_path):
     write_csv(data, time, tc1, tc2)
     with pytest.raises(SystemExit):
         main(["diagnose", str(data), "--window-s", "0"])
+    assert main(["diagnose", str(data), "--window-s", "1", "--jobs", "0"]) == 1

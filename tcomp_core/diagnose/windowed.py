@@ -100,6 +100,18 @@ class WindowResult:
     notes: tuple[str, ...] = ()
     votes: bool = False
 
+    @classmethod
+    def undiagnosed(cls, window: Window, problem: str = "") -> WindowResult:
+        """The row of ``window`` before (or instead of) its diagnosis: why, if ``problem``."""
+        return cls(
+            index=window.index,
+            start_s=window.start_s,
+            length_s=window.length_s,
+            samples=window.samples,
+            problem=problem,
+            notes=window.notes,
+        )
+
     def summary(self) -> dict[str, Any]:
         """JSON-ready row."""
 
@@ -183,13 +195,7 @@ def diagnose_window(
     window: Window, candidates: Sequence[str] = EFFECT_NAMES, max_effects: int = MAX_EFFECTS
 ) -> WindowResult:
     """Diagnose one window; a window that cannot be diagnosed says why in its row."""
-    row = WindowResult(
-        index=window.index,
-        start_s=window.start_s,
-        length_s=window.length_s,
-        samples=window.samples,
-        notes=window.notes,
-    )
+    row = WindowResult.undiagnosed(window)
     if window.record is None:
         return replace(row, problem=window.problem)
     try:
