@@ -306,3 +306,37 @@ def test_cli_refuses_a_window_that_is_not_positive(tmp_path):
     with pytest.raises(SystemExit):
         main(["diagnose", str(data), "--window-s", "0"])
     assert main(["diagnose", str(data), "--window-s", "1", "--jobs", "0"]) == 1
+
+
+@pytest.mark.slow
+def test_the_progress_is_each_diagnosed_windows_not_the_readers_ahead(tmp_path, monkeypatch):
+    """With --jobs the reader runs ahead of the rows: the bar follows the rows."""
+    import tcomp_core.process.progress as progress
+
+    shown: list[float] = []
+
+    class Bar:
+        def update(self, fraction, pairs):
+            shown.append(fraction)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(progress, "progress_bar", lambda label: Bar())
+    # 24 s: 4 windows of 6 s, in chunks of the file the reader's fraction follows.
+    sim = simulate_effect(None, "multisine", tau1=PAPER[0], tau2=PAPER[1], duration=24.0, seed=7)
+    tc1, tc2, count = sim.tc1, sim.tc2, sim.tc1.size
+    stamps = 1_000_000_000 + np.round(sim.time * 1e9).astype(np.int64)
+    writer = McapBagWriter(tmp_path / "chunked", compress=True, chunk_bytes=20_000)
+    one, two = (writer.add_channel(t, TEMPERATURE_TYPE) for t in DEFAULT_TOPICS[:2])
+    for start in range(0, count, 500):
+        part = slice(start, start + 500)
+        writer.write_rows(one, stamps[part], encode(stamps[part], tc1[part], 0.0, "tc"))
+        writer.write_rows(two, stamps[part], encode(stamps[part], tc2[part], 0.0, "tc"))
+    bag = writer.close()
+    argv = ["diagnose", str(bag), "--window-s", "6", "--candidates", "delay", "--jobs", "2"]
+    assert main(argv) == 0
+    # Four rows, each at its window's place in the file (the reader had read it all by the
+    # first row: four windows are handed to two workers before a row is waited for).
+    assert len(shown) == 4 and shown == sorted(shown)
+    assert shown[0] < 0.5 and shown[-1] > 0.9

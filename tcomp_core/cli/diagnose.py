@@ -9,6 +9,7 @@ any record whole.
 from __future__ import annotations
 
 import argparse
+from collections import deque
 from typing import TYPE_CHECKING
 
 from ..choices import EFFECT_NAMES
@@ -23,7 +24,7 @@ from .common import (
 from .diagnosis import add_outputs, write_diagnosis, write_windowed
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Iterable, Iterator
 
     from ..io.windows import Window, WindowReader
 
@@ -133,17 +134,24 @@ def _in_windows(args: argparse.Namespace, reader: WindowReader, windows: Iterabl
             flush=True,
         )
     bar = progress_bar(f"diagnose {args.data.name}")
+    # Where the reader stood when it handed each window over: a row's progress is its window's,
+    # not the reader's, which runs up to two windows per worker ahead with --jobs.
+    read_to: deque[tuple[float, int]] = deque()
+
+    def noting(windows: Iterable[Window]) -> Iterator[Window]:
+        for window in windows:
+            read_to.append((reader.fraction, reader.samples_read))
+            yield window
+
     try:
         result = diagnose_windows(
-            windows,
+            noting(windows),
             source=str(args.data),
             window_s=lambda: float(reader.window_s or 0.0),
             automatic=reader.automatic,
             candidates=args.candidates,
             max_effects=args.max_effects,
-            progress=None
-            if bar is None
-            else lambda _row: bar.update(reader.fraction, reader.samples_read),
+            progress=None if bar is None else lambda _row: bar.update(*read_to.popleft()),
             diagnose_all=None
             if args.jobs == 1
             else lambda windows: diagnose_in_processes(

@@ -72,7 +72,8 @@ def diagnose_in_processes(
         As :func:`~tcomp_core.diagnose.diagnose`.
     diagnose : callable
         The function each worker runs on a window (default
-        :func:`~tcomp_core.diagnose.windowed.diagnose_window`; it must pickle by name).
+        :func:`~tcomp_core.diagnose.windowed.diagnose_window`; it must pickle: a module-level
+        function or a partial of one).
 
     Yields
     ------
@@ -152,8 +153,9 @@ class _WindowPool:
         self._executor.shutdown(wait=True)  # its workers are gone: every future is settled
         self._executor = self._new_executor()
         for index, item in enumerate(self.pending):
-            failed = item.future.exception() is not None
-            if failed and item.attempts < MAX_ATTEMPTS:
+            # (A diagnosis that raised keeps its error: run here, it would have raised too.)
+            lost = isinstance(item.future.exception(), BrokenProcessPool)
+            if lost and item.attempts < MAX_ATTEMPTS:
                 future = self._executor.submit(self._diagnose, item.window, *self._arguments)
                 self.pending[index] = _Pending(item.window, future, item.attempts + 1)
 
