@@ -200,11 +200,14 @@ def test_cli_diagnose_writes_json_and_report(tmp_path, capsys):
             str(out_report),
             "--max-effects",
             "1",
+            "--jobs",
+            "2",
         ]
     )
     assert status == 0
     printed = capsys.readouterr().out
     assert "verdict: delay" in printed and "error staircase" in printed
+    assert "diagnosed whole, in one process (--jobs 2 shares out the windows" in printed
     document = json.loads(out_json.read_text())
     assert document["verdict"] == "delay"
     html = (out_report / "index.html").read_text()

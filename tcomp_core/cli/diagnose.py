@@ -115,6 +115,12 @@ def run(args: argparse.Namespace) -> int:
         if first.record is None:  # a whole record raises instead; kept for the type checker
             raise ValueError(first.problem)
         record = first.record
+    if args.jobs > 1:
+        print(
+            f"{args.data}: diagnosed whole, in one process (--jobs {args.jobs} shares out the "
+            "windows of a record diagnosed in windows: see --window-s)",
+            flush=True,
+        )
     diagnosis = diagnose(record, candidates=args.candidates, max_effects=args.max_effects)
     return write_diagnosis(diagnosis, args)
 
