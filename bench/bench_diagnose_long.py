@@ -14,8 +14,11 @@ resident memory (``os.wait4``'s ``ru_maxrss`` of that child):
 - ``jobs N`` (with ``--jobs N``): the default windows diagnosed in N worker processes
   (``tcomp diagnose --jobs N``), on each bag, beside the one-process run of the same bag.
 
-With worker processes the peak resident memory is the largest sum over the child and its
-descendants, sampled every 0.2 s from ``/proc`` (``ru_maxrss`` is one process's).
+``peak MB`` is the child's own peak resident memory (``ru_maxrss``); ``tree MB`` the largest
+proportional set size (PSS: each page shared between processes counted once, in shares)
+summed over the child and its descendants, sampled every 0.2 s from ``/proc``: with worker
+processes forked from one fork server, a sum of their resident sizes would count the pages
+they share with it (the imported core, about 85 MB) once per process.
 
 It prints a table with the ratios against the baseline and whether the 10-minute bag's verdict
 and τ agree between the whole record and its windows (the median over the windows giving the
@@ -58,6 +61,7 @@ class Run:
     tau1_95: tuple[float, float] | None = None
     tau2_95: tuple[float, float] | None = None
     windows: int = 1
+    tree_mib: float = float("nan")
 
 
 def cached_bag(cache: Path, minutes: float) -> Path:
@@ -76,20 +80,17 @@ def cached_bag(cache: Path, minutes: float) -> Path:
     return path
 
 
-def _tree_rss_mib(root: int) -> float:
-    """Resident memory of process ``root`` and all its descendants, MiB (from ``/proc``)."""
+def _tree_pss_mib(root: int) -> float:
+    """Proportional set size of process ``root`` and all its descendants, MiB (``/proc``)."""
     parents: dict[int, int] = {}
-    resident: dict[int, float] = {}
     for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            pages = int((entry / "statm").read_text().split()[1])
-        except (OSError, IndexError, ValueError):  # the process ended meanwhile
-            continue
-        parents[int(entry.name)] = int(fields[1])
-        resident[int(entry.name)] = pages * os.sysconf("SC_PAGE_SIZE") / MIB / MIB
+        if entry.name.isdigit():
+            try:
+                parents[int(entry.name)] = int(
+                    (entry / "stat").read_text().rsplit(")", 1)[1].split()[1]
+                )
+            except (OSError, IndexError, ValueError):  # the process ended meanwhile
+                continue
     tree, grown = {root}, True
     while grown:
         grown = False
@@ -97,11 +98,18 @@ def _tree_rss_mib(root: int) -> float:
             if parent in tree and pid not in tree:
                 tree.add(pid)
                 grown = True
-    return sum(resident.get(pid, 0.0) for pid in tree)
+    total_kib = 0
+    for pid in tree:
+        try:
+            rollup = Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines()
+        except OSError:
+            continue
+        total_kib += sum(int(line.split()[1]) for line in rollup if line.startswith("Pss:"))
+    return total_kib / MIB
 
 
 class _TreeSampler(threading.Thread):
-    """Samples the largest resident memory of a process tree every 0.2 s."""
+    """Samples the largest proportional set size of a process tree every 0.2 s."""
 
     def __init__(self, root: int) -> None:
         super().__init__(daemon=True)
@@ -110,7 +118,7 @@ class _TreeSampler(threading.Thread):
 
     def run(self) -> None:
         while not self.done.wait(0.2):
-            self.peak_mib = max(self.peak_mib, _tree_rss_mib(self.root))
+            self.peak_mib = max(self.peak_mib, _tree_pss_mib(self.root))
 
 
 def diagnose_in_child(name: str, bag: Path, minutes: float, options: list[str]) -> Run:
@@ -141,7 +149,7 @@ def diagnose_in_child(name: str, bag: Path, minutes: float, options: list[str]) 
         if child.returncode != 0:
             raise SystemExit(f"{' '.join(command)} failed ({child.returncode}):\n{printed}")
         document = json.loads(out.read_text())
-    peak = max(usage.ru_maxrss / MIB, sampler.peak_mib)  # ru_maxrss: kB on Linux
+    peak = usage.ru_maxrss / MIB  # kB on Linux
     if "windows" in document:  # the whole verdict and τ drawn from the windows
         taus = [document[name] for name in ("tau1", "tau2")]
         found = [tau["median"] for tau in taus]
@@ -161,6 +169,7 @@ def diagnose_in_child(name: str, bag: Path, minutes: float, options: list[str]) 
         *found,
         *spreads,
         windows=windows,
+        tree_mib=sampler.peak_mib,
     )
 
 
@@ -205,8 +214,8 @@ def main() -> None:
     baseline = runs[0] if not args.no_whole else None
     print()
     print(
-        f"{'run':<8} {'record':>7} {'windows':>7} {'wall s':>8} {'peak MB':>8} {'MB/min':>7} "
-        f"{'x wall':>7} {'x peak':>7}  {'verdict':<10} {'tau1 s':>9} {'tau2 s':>9}"
+        f"{'run':<8} {'record':>7} {'windows':>7} {'wall s':>8} {'peak MB':>8} {'tree MB':>8} "
+        f"{'MB/min':>7} {'x wall':>7} {'x peak':>7}  {'verdict':<10} {'tau1 s':>9} {'tau2 s':>9}"
     )
     for run in runs:
         ratios = (
@@ -216,7 +225,8 @@ def main() -> None:
         )
         print(
             f"{run.name:<8} {run.minutes:>5g} m {run.windows:>7} {run.seconds:>8.1f} "
-            f"{run.peak_mib:>8.0f} {run.peak_mib / run.minutes:>7.1f} {ratios}  "
+            f"{run.peak_mib:>8.0f} {run.tree_mib:>8.0f} {run.peak_mib / run.minutes:>7.1f} "
+            f"{ratios}  "
             f"{run.verdict:<10} {run.tau1:>9.5g} {run.tau2:>9.5g}"
         )
     for run in runs:
@@ -226,8 +236,9 @@ def main() -> None:
         same = (run.verdict, run.tau1, run.tau2) == (alone.verdict, alone.tau1, alone.tau2)
         print(
             f"{run.minutes:g}-minute bag in {args.jobs} processes against one: "
-            f"{alone.seconds / run.seconds:.2f}x faster, {run.peak_mib / alone.peak_mib:.2f}x "
-            f"the memory, verdict and tau {'identical' if same else 'DIFFERENT'}"
+            f"{alone.seconds / run.seconds:.2f}x faster, {run.tree_mib:.0f} MB over all its "
+            f"processes against {alone.tree_mib:.0f} ({run.tree_mib / alone.tree_mib:.2f}x), "
+            f"verdict and tau {'identical' if same else 'DIFFERENT'}"
         )
     if baseline is not None:
         same = next(run for run in runs[1:] if run.minutes == baseline.minutes)
