@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from tcomp_core.cli import main
-from tcomp_core.diagnose.window_pool import MAX_ATTEMPTS, diagnose_in_processes
+from tcomp_core.diagnose.window_pool import diagnose_in_processes
 from tcomp_core.diagnose.windowed import (
     WindowResult,
     diagnose_window,
@@ -222,7 +222,9 @@ def test_a_worker_that_dies_loses_no_window_and_one_that_always_dies_is_reported
     always = functools.partial(_die_on, tmp_path / "died_again", 2, True)
     rows = list(diagnose_in_processes(_problem_windows(5), 2, diagnose=always))
     assert [row.index for row in rows] == list(range(5))
-    assert f"died {MAX_ATTEMPTS} times" in rows[2].problem and rows[2].verdict is None
+    assert "died, also when it was diagnosed alone" in rows[2].problem
+    assert rows[2].verdict is None
+    # The windows in flight beside it each time are not blamed: diagnosed alone, they pass.
     assert [rows[i].problem for i in (0, 1, 3, 4)] == ["p0", "p1", "p3", "p4"]
     with pytest.raises(ValueError, match="jobs=0"):
         next(diagnose_in_processes(_problem_windows(1), 0))

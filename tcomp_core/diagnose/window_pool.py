@@ -12,9 +12,10 @@ ahead of the row the caller waits for (a window's readings are about 32 bytes a 
 each worker holds one window's diagnosis (about 1.5 kB a sample) at a time. The workers are
 forked from the fork server of :mod:`tcomp_core.workers`, which has the numerical core imported.
 
-A worker that dies (killed, out of memory) breaks the pool and fails every window it held; those
-windows are diagnosed again in a fresh pool, and a window whose diagnosis has broken
-:data:`MAX_ATTEMPTS` pools gets a row that says so instead (the others carry on).
+A worker that dies (killed, out of memory) breaks the pool and fails every window in flight, and
+which one killed it cannot be told: each of them is diagnosed again alone, one at a time in a
+worker of its own, and a window whose worker dies then too gets a row that says so (the others
+carry on, in a fresh pool).
 """
 
 from __future__ import annotations
@@ -31,13 +32,11 @@ from ..workers import worker_context
 from .ranking import MAX_EFFECTS
 from .windowed import WindowResult, diagnose_window
 
-__all__ = ["MAX_ATTEMPTS", "WINDOWS_IN_FLIGHT_PER_WORKER", "diagnose_in_processes"]
+__all__ = ["WINDOWS_IN_FLIGHT_PER_WORKER", "diagnose_in_processes"]
 
 #: Windows handed to the pool per worker before the caller waits for the oldest row: one being
 #: diagnosed and one queued, so a worker that finishes early starts the next window at once.
 WINDOWS_IN_FLIGHT_PER_WORKER = 2
-#: Pools a window's diagnosis may break (its worker dying) before its row reports the failure.
-MAX_ATTEMPTS = 2
 
 #: diagnose_window's signature: (window, candidates, max_effects) -> row.
 DiagnoseWindow = Callable[[Window, Sequence[str], int], WindowResult]
@@ -45,11 +44,11 @@ DiagnoseWindow = Callable[[Window, Sequence[str], int], WindowResult]
 
 @dataclass
 class _Pending:
-    """A window handed to the pool: its future, and how many pools it has been given to."""
+    """A window handed to the pool: its future, and whether it was diagnosed alone."""
 
     window: Window
     future: Future[WindowResult]
-    attempts: int
+    alone: bool = False
 
 
 def diagnose_in_processes(
@@ -120,7 +119,7 @@ class _WindowPool:
 
     def add(self, window: Window) -> None:
         """Hand ``window`` to the pool."""
-        self.pending.append(_Pending(window, self._submit(window), attempts=1))
+        self.pending.append(_Pending(window, self._submit(window)))
 
     def _submit(self, window: Window) -> Future[WindowResult]:
         try:
@@ -136,7 +135,7 @@ class _WindowPool:
             try:
                 row = head.future.result()
             except BrokenProcessPool as exc:
-                if head.attempts >= MAX_ATTEMPTS:
+                if head.alone:
                     self.pending.popleft()
                     return _failed(head.window, exc)
                 self._recover()
@@ -145,19 +144,25 @@ class _WindowPool:
             return row
 
     def _recover(self) -> None:
-        """A fresh pool for a broken one, and every window the broken one failed given to it.
+        """A fresh pool for a broken one; every window the broken one lost diagnosed alone.
 
-        Only a broken pool is replaced, so no window in flight in a working one is lost; a
-        window that has used its attempts keeps its failure.
+        Only a broken pool is replaced, so no window in flight in a working one is lost. Each
+        lost window runs by itself in a worker of its own, one after another (a rare path: the
+        window that killed its worker, out of memory say, must not take others with it again).
         """
         self._executor.shutdown(wait=True)  # its workers are gone: every future is settled
         self._executor = self._new_executor()
         for index, item in enumerate(self.pending):
             # (A diagnosis that raised keeps its error: run here, it would have raised too.)
-            lost = isinstance(item.future.exception(), BrokenProcessPool)
-            if lost and item.attempts < MAX_ATTEMPTS:
-                future = self._executor.submit(self._diagnose, item.window, *self._arguments)
-                self.pending[index] = _Pending(item.window, future, item.attempts + 1)
+            if isinstance(item.future.exception(), BrokenProcessPool) and not item.alone:
+                self.pending[index] = _Pending(item.window, self._alone(item.window), alone=True)
+
+    def _alone(self, window: Window) -> Future[WindowResult]:
+        """``window`` diagnosed in a pool of one worker, waited for: a settled future."""
+        with ProcessPoolExecutor(max_workers=1, mp_context=worker_context()) as solo:
+            future = solo.submit(self._diagnose, window, *self._arguments)
+            future.exception()  # waits
+        return future
 
     def close(self) -> None:
         """Stop the workers; windows not yet diagnosed are dropped."""
@@ -165,9 +170,9 @@ class _WindowPool:
 
 
 def _failed(window: Window, error: BaseException) -> WindowResult:
-    """The row of a window whose diagnosis killed its worker :data:`MAX_ATTEMPTS` times."""
+    """The row of a window whose worker died, also when it was diagnosed alone."""
     return WindowResult.undiagnosed(
         window,
-        f"the worker process diagnosing it died {MAX_ATTEMPTS} times "
+        "the worker process diagnosing it died, also when it was diagnosed alone "
         f"({' '.join(str(error).split())}); too little memory for a window this long?",
     )
