@@ -8,7 +8,7 @@ diagnosed here: each worker runs the same :func:`~tcomp_core.diagnose.windowed.d
 on the same window.
 
 Memory stays bounded: at most :data:`WINDOWS_IN_FLIGHT_PER_WORKER` windows per worker are read
-ahead of the row the caller waits for (a window's readings are about 32 bytes a sample), and
+ahead of the row the caller waits for (a window's record is about 40 bytes a sample), and
 each worker holds one window's diagnosis (about 1.5 kB a sample) at a time. The workers are
 forked from the fork server of :mod:`tcomp_core.workers`, which has the numerical core imported.
 

@@ -195,9 +195,9 @@ def diagnose_window(
     window: Window, candidates: Sequence[str] = EFFECT_NAMES, max_effects: int = MAX_EFFECTS
 ) -> WindowResult:
     """Diagnose one window; a window that cannot be diagnosed says why in its row."""
-    row = WindowResult.undiagnosed(window)
     if window.record is None:
-        return replace(row, problem=window.problem)
+        return WindowResult.undiagnosed(window, window.problem)
+    row = WindowResult.undiagnosed(window)
     try:
         found = diagnose(window.record, candidates=candidates, max_effects=max_effects)
     except (TcompError, ValueError) as exc:
