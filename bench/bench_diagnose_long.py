@@ -16,7 +16,7 @@ resident memory (``os.wait4``'s ``ru_maxrss`` of that child):
 
 ``peak MB`` is the child's own peak resident memory (``ru_maxrss``); ``tree MB`` the largest
 proportional set size (PSS: each page shared between processes counted once, in shares)
-summed over the child and its descendants, sampled every 0.2 s from ``/proc``: with worker
+summed over the child and its descendants, sampled every 0.2 s (psutil): with worker
 processes forked from one fork server, a sum of their resident sizes would count the pages
 they share with it (the imported core, about 85 MB) once per process.
 
@@ -31,6 +31,7 @@ Usage: ``python bench/bench_diagnose_long.py [--window-s 60] [--no-long] [--no-w
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
@@ -42,6 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import bench_process
+import psutil  # a dependency of dask.distributed (tcomp campaign)
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 MIB = 1024.0
@@ -81,31 +83,17 @@ def cached_bag(cache: Path, minutes: float) -> Path:
 
 
 def _tree_pss_mib(root: int) -> float:
-    """Proportional set size of process ``root`` and all its descendants, MiB (``/proc``)."""
-    parents: dict[int, int] = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                parents[int(entry.name)] = int(
-                    (entry / "stat").read_text().rsplit(")", 1)[1].split()[1]
-                )
-            except (OSError, IndexError, ValueError):  # the process ended meanwhile
-                continue
-    tree, grown = {root}, True
-    while grown:
-        grown = False
-        for pid, parent in parents.items():
-            if parent in tree and pid not in tree:
-                tree.add(pid)
-                grown = True
-    total_kib = 0
-    for pid in tree:
-        try:
-            rollup = Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines()
-        except OSError:
-            continue
-        total_kib += sum(int(line.split()[1]) for line in rollup if line.startswith("Pss:"))
-    return total_kib / MIB
+    """Proportional set size of process ``root`` and all its descendants, MiB (psutil)."""
+    try:
+        parent = psutil.Process(root)
+        processes = [parent, *parent.children(recursive=True)]
+    except psutil.Error:  # the child has ended
+        return 0.0
+    total = 0
+    for process in processes:
+        with contextlib.suppress(psutil.Error):  # a worker that ended meanwhile
+            total += process.memory_full_info().pss
+    return total / MIB / MIB
 
 
 class _TreeSampler(threading.Thread):

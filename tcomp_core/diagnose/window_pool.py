@@ -111,11 +111,12 @@ class _WindowPool:
         self._jobs = jobs
         self._arguments = (list(candidates), max_effects)
         self._diagnose = diagnose
-        self._executor = self._new_executor()
+        self._executor = self._new_executor(jobs)
         self.pending: deque[_Pending] = deque()
 
-    def _new_executor(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=self._jobs, mp_context=worker_context())
+    @staticmethod
+    def _new_executor(workers: int) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=workers, mp_context=worker_context())
 
     def add(self, window: Window) -> None:
         """Hand ``window`` to the pool."""
@@ -151,7 +152,7 @@ class _WindowPool:
         window that killed its worker, out of memory say, must not take others with it again).
         """
         self._executor.shutdown(wait=True)  # its workers are gone: every future is settled
-        self._executor = self._new_executor()
+        self._executor = self._new_executor(self._jobs)
         for index, item in enumerate(self.pending):
             # (A diagnosis that raised keeps its error: run here, it would have raised too.)
             if isinstance(item.future.exception(), BrokenProcessPool) and not item.alone:
@@ -159,7 +160,7 @@ class _WindowPool:
 
     def _alone(self, window: Window) -> Future[WindowResult]:
         """``window`` diagnosed in a pool of one worker, waited for: a settled future."""
-        with ProcessPoolExecutor(max_workers=1, mp_context=worker_context()) as solo:
+        with self._new_executor(1) as solo:
             future = solo.submit(self._diagnose, window, *self._arguments)
             future.exception()  # waits
         return future
