@@ -1,7 +1,8 @@
 """Where the test suite's time goes: CPU or waiting, and which files.
 
-Runs pytest as ``make test`` does (``-n auto --dist worksteal``, one BLAS thread per worker;
-pytest arguments after ``--`` replace the default of the whole suite) with a plugin
+Runs the tests as ``make test`` does (``make pytest``: the real-time tests one at a time beside
+the rest on every core at a lower priority, one BLAS thread per process; pytest arguments after
+``--`` instead run one pytest, ``-n WORKERS --dist worksteal``, on what they select) with a plugin
 (:mod:`suite_cpu_plugin`) that records each test's wall time and the CPU time of its worker
 process and of the processes it started and reaped (node processes, CLI children, Dask
 workers), and samples the machine's busy share from ``/proc/stat`` over the run. It prints
@@ -16,6 +17,7 @@ Run::
     .venv/bin/python bench/bench_suite.py                      # the whole suite, as make test
     .venv/bin/python bench/bench_suite.py -- -m "not slow"     # as make test-fast
     .venv/bin/python bench/bench_suite.py --workers 3          # more workers than cores
+    .venv/bin/python bench/bench_suite.py -- test              # all in one pytest, as before
 """
 
 from __future__ import annotations
@@ -46,8 +48,12 @@ def run_suite(workers: str, pytest_args: list[str], record: Path) -> tuple[float
             filter(None, (str(Path(__file__).parent), os.environ.get("PYTHONPATH")))
         ),
     }
-    command = [sys.executable, "-m", "pytest", "-q", "-p", "suite_cpu_plugin"]
-    command += ["-n", workers, "--dist", "worksteal", *pytest_args]
+    if pytest_args:
+        command = [sys.executable, "-m", "pytest", "-q", "-p", "suite_cpu_plugin"]
+        command += ["-n", workers, "--dist", "worksteal", *pytest_args]
+    else:
+        command = ["make", "--no-print-directory", "pytest", f"PY={sys.executable}"]
+        command += [f"PYTEST_WORKERS={workers}", "PYTEST_FLAGS=-q -p suite_cpu_plugin"]
     busy0, total0 = machine_ticks()
     start = time.perf_counter()
     code = subprocess.call(command, cwd=ROOT, env=env)

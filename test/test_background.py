@@ -13,6 +13,9 @@ from tcomp_core.diagnose.background import BackgroundDiagnoser, parse_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.simulate import simulate_pair
 
+# Jobs in a worker process, and their waits and latencies on the wall clock.
+pytestmark = pytest.mark.realtime
+
 KEYS = {
     "effects",
     "base_error_pct",

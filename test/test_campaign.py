@@ -252,6 +252,7 @@ def test_a_recording_that_cannot_be_read_is_an_error_entry_and_is_not_kept(tmp_p
 
 
 @pytest.mark.slow
+@pytest.mark.realtime  # a Dask cluster: tasks spread over workers as they free
 def test_a_generated_campaign_on_two_workers_follows_the_truth_and_survives_a_killed_worker(
     tmp_path,
 ):
@@ -313,6 +314,7 @@ def test_the_cli_names_a_bad_probe_rule_and_inputs_without_recordings(tmp_path, 
 
 
 @pytest.mark.slow
+@pytest.mark.realtime  # a Dask cluster: tasks spread over workers as they free
 def test_the_windows_of_one_recording_are_diagnosed_across_the_workers_as_here(tmp_path):
     from distributed import Client, LocalCluster, get_task_stream
 

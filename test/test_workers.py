@@ -26,7 +26,9 @@ def test_the_worker_is_forked_from_a_server_that_imported_the_core():
         assert outcome.error == ""
         parent, niceness, preloaded = outcome.value
         assert parent != os.getpid()  # a spawned worker is the caller's child
-        assert niceness >= os.nice(0) + 10  # still niced below its caller
+        # Still niced below its caller (as far as 19, the lowest priority: make test runs
+        # this at 10).
+        assert niceness >= min(os.nice(0) + 10, 19)
         assert preloaded
         workers = runner.worker_pids
         assert workers and workers[0] != os.getpid()
