@@ -59,6 +59,12 @@ test: $(STAMP)
 PYTEST_WORKERS ?= auto
 PYTEST_FLAGS ?= --durations=20
 PARALLEL := OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
+# Bytecode written even where the environment says not to (PYTHONDONTWRITEBYTECODE=1): every
+# test process and the processes the tests start would otherwise compile the core from source,
+# and pytest rewrite every test module's assertions in each of its processes, on every run
+# (py-spy: about 11 CPU-seconds a run; make test 293.3 -> 290.9 s side by side). The caches go
+# to __pycache__/, which git ignores.
+PARALLEL += PYTHONDONTWRITEBYTECODE=
 PYTEST_REST := $(PARALLEL) nice -n 10 $(PY) -m pytest $(PYTEST_FLAGS) \
 	-n $(PYTEST_WORKERS) --dist worksteal -m 'not realtime'
 PYTEST_REALTIME := $(PARALLEL) $(PY) -m pytest $(PYTEST_FLAGS) -m realtime \
