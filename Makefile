@@ -35,10 +35,10 @@ $(STAMP): setup.py setup.cfg package.xml
 	touch $(STAMP)
 
 # Everything: all tests and the static checks (ruff, mypy). One BLAS thread per test process:
-# the processes already fill the cores. The static checks run beside the tests at the lowest
-# priority, so they take the cycles the tests leave instead of running after them (mypy without
-# its cache, as on a fresh machine: 17 s); their output follows pytest's, and either failing
-# fails the target.
+# the processes already fill the cores. The static checks run beside the tests instead of after
+# them, at the lowest priority (nice 19, below the tests' 10 and 0), so they take a small share
+# of the busy machine (mypy without its cache, as on a fresh machine: 17 s of CPU); their output
+# follows pytest's, and either failing fails the target.
 test: $(STAMP)
 	@lint_log=$$(mktemp); \
 	nice -n 19 $(MAKE) --no-print-directory lint >"$$lint_log" 2>&1 & lint_pid=$$!; \
