@@ -57,7 +57,8 @@ def test_a_slow_gas_short_of_every_one_bin_bound_is_a_shared_signal(seed):
 
 def test_the_segments_cover_the_whole_record():
     # A record of 3 * 2**k + 1 samples: power-of-two segments used to leave a third out, and a
-    # gas that moves only in that third was called noise.
+    # gas that moves only in that third was called noise. The segments are now of a length
+    # whose transform is fast, at most a few percent short of an even split.
     rng = np.random.default_rng(8)
     n = 3 * 4096 + 1
     t = np.arange(n) * DT
@@ -66,7 +67,7 @@ def test_the_segments_cover_the_whole_record():
     tc2 = gas + rng.standard_normal(n)
     for segments in SHARED_SEGMENTS:
         _, length = _coherence(tc1, tc2, segments)
-        assert length == n // segments
+        assert 0.95 * (n // segments) <= length <= n // segments
     check_shared_signal(tc1, tc2, DT)
 
 
