@@ -271,7 +271,8 @@ def check_shared_signal(
         f"{names[0]} and {names[1]} share no signal: their coherence is at most "
         f"{value:.2f} at any frequency (near {(best + 1) / (length * dt):.3g} Hz; "
         "two sensors in one gas reach near 1 where it moves them): noise alone, or not "
-        "two thermocouples in the same gas"
+        "two thermocouples in the same gas, or a gas that changes too seldom in the record "
+        "for its few changes to tell from chance (a longer record shows more of them)"
     )
 
 
