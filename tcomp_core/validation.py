@@ -12,7 +12,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.fft import prev_fast_len
 
 from .errors import DataError, NoExcitationError
 
@@ -177,6 +176,8 @@ def _coherence(
 
     None when the segments would be shorter than :data:`SHARED_MIN_LENGTH`.
     """
+    from scipy.fft import prev_fast_len  # not at import: the replay node loads no scipy
+
     if tc1.size // segments < SHARED_MIN_LENGTH:
         return None
     # The longest length whose transform is fast: a large prime length took six times as long
