@@ -138,11 +138,11 @@ def check_excitation(
 
 
 #: Segments the shared-signal check averages (Hann-windowed, not overlapping, together the
-#: whole record but for a few percent), finest resolution first:
-#: independent noise stays below :data:`SHARED_COHERENCE` in every bin with 32 segments
-#: (P = 0.5^31 per bin); 8 segments of four times the length resolve a slow gas (ramps of a few
-#: seconds, whose 32 segments at a decimated rate put their first bin above the gas's band) and
-#: are held to the coherence that keeps that chance per bin.
+#: whole record but for a few percent), finest resolution first: independent noise stays below
+#: :data:`SHARED_COHERENCE` in every bin with 32 segments (P = 0.5^31 per bin); 8 segments of
+#: four times the length resolve a slow gas (ramps of a few seconds, whose 32 segments at a
+#: decimated rate put their first bin above the gas's band) and are held to the coherence that
+#: keeps that chance per bin.
 SHARED_SEGMENTS = (32, 8)
 #: Samples per segment at least (a record shorter than 32 of them is not checked).
 SHARED_MIN_LENGTH = 64
