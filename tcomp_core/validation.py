@@ -203,19 +203,17 @@ def _pooled_log_chance(coherence: NDArray[np.float64], segments: int, bins: int)
     Under independence each bin's coherence over n segments is Beta(1, n − 1), so
     −(n − 1) log(1 − C) is exponential with mean 1, and the sum over ``bins`` bins, every other
     one from the first (a Hann window's neighbours share two thirds of their noise, bins two
-    apart a sixth), is Gamma(bins, 1). Returns log P(Gamma ≥ that sum); 0 when the spectrum
-    has fewer bins.
+    apart a sixth), is Gamma(bins, 1). Returns log P(Gamma ≥ that sum) (−inf where it
+    underflows); 0 when the spectrum has fewer bins.
     """
+    from scipy.special import gammaincc  # not at import: the replay node loads no scipy
+
     picked = coherence[0 : 2 * bins - 1 : 2]
     if picked.size < bins:
         return 0.0
     pooled = -(segments - 1) * float(np.sum(np.log1p(-np.minimum(picked, 1.0 - 1e-16))))
-    if pooled <= 0.0:
-        return 0.0
-    # P(Gamma(m, 1) >= s) = exp(-s) sum_{k < m} s^k / k!, summed in logs.
-    terms = [k * math.log(pooled) - math.lgamma(k + 1) for k in range(bins)]
-    top = max(terms)
-    return min(-pooled + top + math.log(sum(math.exp(t - top) for t in terms)), 0.0)
+    chance = float(gammaincc(bins, max(pooled, 0.0)))
+    return math.log(chance) if chance > 0.0 else -math.inf
 
 
 def _pools_shared_signal(coherence: NDArray[np.float64], segments: int) -> bool:
