@@ -24,6 +24,17 @@ def _exponentials(seed: int):
     return residual
 
 
+def _counted(residual):
+    """``residual`` and the list it appends to on every call."""
+    calls = []
+
+    def counted(x):
+        calls.append(1)
+        return residual(x)
+
+    return counted, calls
+
+
 def test_ends_at_the_minimum_least_squares_finds():
     bounds = (np.array([-5.0, -5.0, -2.0]), np.array([5.0, 5.0, 2.0]))
     for seed in range(5):
@@ -74,13 +85,7 @@ def test_a_search_ends_before_a_trial_the_model_says_would_not_move_it(monkeypat
     start = np.array([np.log(2.5), np.log(1.0), 0.3])
     saved = 0
     for seed in range(5):
-        residual = _exponentials(seed)
-        calls = []
-
-        def counted(x, residual=residual, calls=calls):
-            calls.append(1)
-            return residual(x)
-
+        counted, calls = _counted(_exponentials(seed))
         found = levenberg_marquardt(counted, start, bounds, xtol=1e-12, ftol=1e-12)
         shortcut = len(calls)
         calls.clear()
@@ -92,3 +97,35 @@ def test_a_search_ends_before_a_trial_the_model_says_would_not_move_it(monkeypat
         assert shortcut <= len(calls)
         saved += len(calls) - shortcut
     assert saved >= 4  # at least one search skipped its last trial and Jacobian
+
+
+def test_a_search_told_a_share_of_the_standard_errors_stops_within_it():
+    bounds = (np.array([-5.0, -5.0, -2.0]), np.array([5.0, 5.0, 2.0]))
+    stop_se = 1e-3
+    saved = 0
+    for seed in range(8):
+        residual = _exponentials(seed)
+        full = levenberg_marquardt(
+            residual, np.array([1.0, 0.3, 0.4]), bounds, xtol=1e-12, ftol=1e-12
+        )
+        assert full is not None
+        # A warm start: the minimum moved by about a third of a standard error, as a window's
+        # does when the node's window slides on.
+        sigma2 = 2.0 * full.cost / residual(full.x).size
+        covariance = sigma2 * np.linalg.inv(full.jac.T @ full.jac)
+        se = np.sqrt(np.diag(covariance))
+        warm = full.x + 0.3 * se * np.array([1.0, -1.0, 1.0])
+        counted, calls = _counted(residual)
+        strict = levenberg_marquardt(counted, warm, bounds, xtol=1e-12, ftol=1e-12)
+        strict_calls = len(calls)
+        calls.clear()
+        found = levenberg_marquardt(counted, warm, bounds, xtol=1e-12, ftol=1e-12, stop_se=stop_se)
+        assert strict is not None and found is not None
+        # Within the share asked of every standard error, and the Jacobian the end's own.
+        assert np.all(np.abs(found.x - strict.x) <= stop_se * se), (found.x - strict.x) / se
+        np.testing.assert_allclose(
+            found.jac, forward_jacobian(residual, found.x, residual(found.x), bounds[1])
+        )
+        assert len(calls) <= strict_calls
+        saved += strict_calls - len(calls)
+    assert saved >= 8 * 4  # a Jacobian and its trial on every search

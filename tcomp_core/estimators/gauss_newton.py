@@ -9,7 +9,8 @@ bookkeeping. From a warm start (the previous window's τ, or the same window's w
 forward-difference Jacobian as ``least_squares(jac="2-point")`` and the same stopping rules
 (``ftol``, ``xtol``, ``gtol``), so it stops at the same minimum within those tolerances; it
 also stops, without the trial, where the step's predicted lowering of the cost is a thousandth
-of ``ftol`` (:data:`PREDICTED_SHARE`).
+of ``ftol`` (:data:`PREDICTED_SHARE`), or, when asked (``stop_se``), where the step is shorter
+than a given share of the parameters' standard errors.
 
 It returns None, and the caller falls back to ``least_squares``, when it does not converge
 within its budget or when its end lies within ``edge`` of a bound: a minimum on the edge is
@@ -117,6 +118,7 @@ def levenberg_marquardt(
     gtol: float = 1e-8,
     max_nfev: int = 100,
     edge: float = 1e-6,
+    stop_se: float = 0.0,
 ) -> SearchResult | None:
     """Minimise ½‖fun(x)‖² from ``x0`` inside ``bounds``, or None (see the module docstring).
 
@@ -135,6 +137,13 @@ def levenberg_marquardt(
         Evaluations of ``fun`` allowed, the Jacobian's included.
     edge : float
         An end closer than this to a bound is left to ``least_squares`` (None).
+    stop_se : float
+        Stop before the trial once the Gauss–Newton step is shorter than this many standard
+        errors of x (0: never). The length is the step's Mahalanobis length in the metric of
+        JᵀJ / σ̂², σ̂² = 2 cost / m the residual's variance per row: with the step's predicted
+        lowering of the cost p = ½ δᵀJᵀJδ, its square is p m / cost. For a residual of noise
+        the estimate itself scatters by one standard error, so a remaining step of 1e-3 of
+        one is none.
 
     Returns
     -------
@@ -172,6 +181,8 @@ def levenberg_marquardt(
             predicted = -float(gradient @ step) - 0.5 * float(step @ normal @ step)
             if predicted < PREDICTED_SHARE * ftol * cost and off_edges(x, low, high, edge):
                 return _result(x, cost, jacobian, nfev, "ftol, predicted")
+            if predicted * residual.size < stop_se**2 * cost and off_edges(x, low, high, edge):
+                return _result(x, cost, jacobian, nfev, "step within stop_se")
         trial = np.clip(x + step, low, high)
         moved = trial - x
         trial_residual = fun(trial)
