@@ -132,7 +132,8 @@ _MAX_EVALUATIONS = 1500
 #: A warm search stops once its next step is shorter than this share of the standard errors
 #: (:func:`~.gauss_newton.levenberg_marquardt`'s ``stop_se``): the node's windows at 5 kHz
 #: then end after their second Jacobian instead of a third (8 evaluations of the residual
-#: instead of 12), τ within 1e-6 of itself, a thousandth of its standard error.
+#: instead of 12), each τ within a thousandth of its standard error of where the strict
+#: tolerances end (within 9.5e-7 of itself on ``bench/bench_window_estimate.py``'s windows).
 _STOP_SE = 1e-3
 
 
