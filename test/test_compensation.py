@@ -128,6 +128,34 @@ def test_calibration_keeps_the_first_order_level(causal):
     assert model_with(("delay",), {"delay_s": 0.01}).keeps_first_order_level is False
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("causal", [False, True])
+def test_a_level_left_to_first_order_is_the_default_paths(causal):
+    """With the default path's τ known, the level kept is that of the gas it publishes: the
+    same mean as ``tcomp reconstruct`` without options, whatever the model's own τ."""
+    sim = simulate_effect("calibration", "multisine", duration=10.0, noise_percent=1.0, seed=2)
+    params = {"gain": sim.params["gain"], "offset_c": sim.params["offset_c"]}
+    model = model_with(("calibration",), params, n=sim.tc1.size)
+    # The default path's first order, on other τ than the model's (as ml-eiv's first order
+    # and a model's fit differ on a real record).
+    published = (1.15 * sim.tau1, 0.9 * sim.tau2)
+    model = replace(
+        model,
+        params={**model.params, "tau1": sim.tau1, "tau2": sim.tau2},
+        first_order_taus=published,
+    )
+    default = fuse(sim.tc1, sim.tc2, sim.dt, *published, causal=causal).gas
+    extended = compensate(model, sim.time, sim.tc1, sim.tc2, sim.dt, causal=causal)
+    count = min(default.size, extended.gas.size)
+    assert np.mean(extended.gas[:count]) == pytest.approx(np.mean(default[:count]), abs=1e-9)
+    # The rule without the default path's τ keeps another first order's level: the test
+    # tells the two apart.
+    before = compensate(
+        replace(model, first_order_taus=None), sim.time, sim.tc1, sim.tc2, sim.dt, causal=causal
+    )
+    assert abs(np.mean(before.gas[:count]) - np.mean(default[:count])) > 1e-3
+
+
 def test_a_stream_leaves_velocity_and_property_at_first_order():
     model = model_with(("velocity", "delay"), {"delay_s": 0.01})
     assert model.applied() == ("velocity", "delay")

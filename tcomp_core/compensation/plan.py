@@ -177,6 +177,11 @@ class OutputModel:
         was not checked.
     refusal : str
         Why the fit may not make the gas, every piece then left first order ('' when it may).
+    first_order_taus : (float, float) or None
+        τ1, τ2 of the default path's first order on the fitted record (ml-eiv, fitted with the
+        sensors' gain), s; None when it was not run or refused the record. With ``lines`` it
+        gives the default path's gas, whose level an offline gas keeps where a ``dynamics``
+        piece leaves the level to first order (:func:`~.offline.compensate`).
     """
 
     effects: tuple[str, ...]
@@ -194,6 +199,7 @@ class OutputModel:
     lines: tuple[ForeignLine, ...] = ()
     first_order_failure: str = ""
     refusal: str = ""
+    first_order_taus: tuple[float, float] | None = None
 
     @property
     def tau1(self) -> float:
@@ -440,6 +446,7 @@ def output_model_from_diagnosis(
         lines=tuple(first_order_lines),
         first_order_failure=first_order_failure,
         refusal=refusal,
+        first_order_taus=first_order_taus,
     )
 
 
