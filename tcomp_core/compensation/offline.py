@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..effects.chain import first_order_reading
+from ..errors import TcompError
 from ..fusion import FusionModel, FusionResult, fuse
 from ..fusion.signal_model import ModelChoice
 from ..lines import line_free_pair
@@ -129,6 +130,7 @@ def default_level_shift_c(
     tc2: NDArray[np.float64],
     dt: float,
     causal: bool = False,
+    signal_model: ModelChoice | FusionModel = "auto",
 ) -> float | None:
     """Degrees C that move a Kalman ``gas`` to the mean of the default path's gas, or None.
 
@@ -136,7 +138,9 @@ def default_level_shift_c(
     leaves the level to first order; the first order a user has is the default path's: its
     τ (:attr:`OutputModel.first_order_taus`), its lines off the sensor that carries them and
     the same Kalman reconstruction (the smoother, or with ``causal`` the filter), each with
-    its own signal model. Two first-order reconstructions at other τ, or fused with another
+    its own signal model (``signal_model`` when it is a choice, as ``--signal-model`` gives
+    it to both; a fitted model belongs to the equivalent readings, so the default path fits
+    its own). Two first-order reconstructions at other τ, or fused with another
     signal model, weigh the sensors otherwise at low frequency, and where the sensors
     disagree by tens of degrees in level that moved the gas by degrees (campaign draw 10176:
     3.6 °C below ``tcomp reconstruct``'s, its error 20.2 -> 27.5 %).
@@ -147,14 +151,13 @@ def default_level_shift_c(
         The shift; None without a ``dynamics`` piece, without the default path's τ, or where
         its reconstruction fails (the caller then keeps :func:`level_shift_c`'s rule).
     """
-    from ..errors import TcompError
-
     taus = model.first_order_taus
     if not model.keeps_first_order_level or taus is None:
         return None
     readings = line_free_pair(tc1, tc2, dt, model.lines, taus)
+    choice = signal_model if isinstance(signal_model, str) else "auto"
     try:
-        default = fuse(*readings, dt, taus[0], taus[1], causal=causal).gas
+        default = fuse(*readings, dt, taus[0], taus[1], model=choice, causal=causal).gas
     except (TcompError, ValueError, np.linalg.LinAlgError):
         return None
     count = min(gas.size, default.size)
@@ -196,7 +199,7 @@ def compensate(
     fusion = fuse(
         readings[0], readings[1], dt, model.tau1, model.tau2, model=signal_model, causal=causal
     )
-    shift = default_level_shift_c(model, fusion.gas, tc1, tc2, dt, causal)
+    shift = default_level_shift_c(model, fusion.gas, tc1, tc2, dt, causal, signal_model)
     if shift is None:
         shift = level_shift_c(
             model,
