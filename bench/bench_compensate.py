@@ -66,6 +66,7 @@ from tcomp_core.compensation import (
     compensate,
     default_estimate,
     default_first_order_failure,
+    default_path_gas,
     fit_output_model,
     output_model_from_diagnosis,
     output_model_with_fallback,
@@ -78,7 +79,6 @@ from tcomp_core.errors import EstimationError
 from tcomp_core.estimators import Estimate
 from tcomp_core.fusion import fuse
 from tcomp_core.io import Record
-from tcomp_core.lines import line_free_pair
 from tcomp_core.simulate_effects import effect_forms, simulate_effect
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -357,9 +357,7 @@ def default_gas(record: Record, plain: Estimate | None = None) -> np.ndarray:
     if plain is None:
         raise ValueError(f"{record.source}: the default path refuses the record")
     taus = (float(plain.tau1), float(plain.tau2))
-    # As tcomp reconstruct: the lines one sensor carries are taken off it first.
-    readings = line_free_pair(record.tc1, record.tc2, record.dt, plain.lines, taus)
-    return fuse(*readings, record.dt, *taus).gas
+    return default_path_gas(record.tc1, record.tc2, record.dt, taus, plain.lines)
 
 
 def form_cost() -> None:

@@ -8,7 +8,13 @@ sample, for the compensator node and ``tcomp process``.
 
 from __future__ import annotations
 
-from .offline import Compensated, compensate, equivalent_readings, level_shift_c
+from .offline import (
+    Compensated,
+    compensate,
+    default_path_gas,
+    equivalent_readings,
+    level_shift_c,
+)
 from .plan import (
     FIRST_ORDER,
     OutputModel,
@@ -31,6 +37,7 @@ __all__ = [
     "compensate",
     "default_estimate",
     "default_first_order_failure",
+    "default_path_gas",
     "default_taus",
     "equivalent_readings",
     "fit_output_model",

@@ -13,7 +13,7 @@ reconstruction gives with that effect left first order (:func:`level_shift_c`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,13 +23,14 @@ from ..effects.chain import first_order_reading
 from ..errors import TcompError
 from ..fusion import FusionModel, FusionResult, fuse
 from ..fusion.signal_model import ModelChoice
-from ..lines import line_free_pair
+from ..lines import ForeignLine, line_free_pair
 from .plan import OutputModel
 
 __all__ = [
     "Compensated",
     "compensate",
     "default_level_shift_c",
+    "default_path_gas",
     "equivalent_readings",
     "level_shift_c",
 ]
@@ -123,6 +124,30 @@ def level_shift_c(
     return float(np.mean(difference[np.isfinite(difference)]))
 
 
+def default_path_gas(
+    tc1: NDArray[np.float64],
+    tc2: NDArray[np.float64],
+    dt: float,
+    taus: tuple[float, float],
+    lines: Sequence[ForeignLine] = (),
+    signal_model: ModelChoice = "auto",
+    causal: bool = False,
+) -> NDArray[np.float64]:
+    """The gas ``tcomp reconstruct`` publishes without options, shape (N,), degrees C.
+
+    The default path's first order: ``lines`` (found by its ml-eiv estimate) taken off the
+    sensor that carries them, then the Kalman smoother (or with ``causal`` the filter) at its
+    τ (``taus``, s), its signal model fitted to the readings.
+
+    Raises
+    ------
+    TcompError
+        As :func:`tcomp_core.fusion.fuse` raises it.
+    """
+    readings = line_free_pair(tc1, tc2, dt, lines, taus)
+    return fuse(*readings, dt, taus[0], taus[1], model=signal_model, causal=causal).gas
+
+
 def default_level_shift_c(
     model: OutputModel,
     gas: NDArray[np.float64],
@@ -154,10 +179,9 @@ def default_level_shift_c(
     taus = model.first_order_taus
     if not model.keeps_first_order_level or taus is None:
         return None
-    readings = line_free_pair(tc1, tc2, dt, model.lines, taus)
     choice = signal_model if isinstance(signal_model, str) else "auto"
     try:
-        default = fuse(*readings, dt, taus[0], taus[1], model=choice, causal=causal).gas
+        default = default_path_gas(tc1, tc2, dt, taus, model.lines, choice, causal)
     except (TcompError, ValueError, np.linalg.LinAlgError):
         return None
     count = min(gas.size, default.size)
