@@ -90,3 +90,33 @@ def test_a_fit_with_one_free_parameter_runs(delayed):
         refit = evaluator.refit_model(start, hold)
         assert refit.params["delay_s"] == pytest.approx(fitted, rel=0.05), delay_s
         assert (refit.tau1, refit.tau2) == (model.tau1, model.tau2)
+
+
+def test_the_output_error_grid_ranks_with_loose_fits_and_searches_from_a_converged_one(
+    delayed, monkeypatch
+):
+    """Conduction's legs (an output-error parameter): the grid's fits only rank its points, at
+    GRID_TOLERANCE; the best point's fit is converged at the fit's own tolerance before the
+    search starts from it, and what the search returns is a converged fit."""
+    from tcomp_core.diagnose import ranking
+    from tcomp_core.diagnose.heldout import Evaluator
+    from tcomp_core.effects.model import FIT_TOLERANCE
+
+    evaluator, model = delayed
+    calls = []
+    fit = Evaluator.fit
+
+    def recording(self, start, hold=frozenset(), tolerance=FIT_TOLERANCE):
+        fitted = fit(self, start, hold, tolerance)
+        calls.append((tolerance, start, fitted))
+        return fitted
+
+    monkeypatch.setattr(Evaluator, "fit", recording)
+    start = model.with_effect("conduction")
+    found = ranking._output_error_fit(evaluator, start, ("tau_leg",), coupled=True)
+    grid = calls[: ranking.OUTPUT_ERROR_GRID]
+    assert all(tolerance == ranking.GRID_TOLERANCE for tolerance, _, _ in grid)
+    assert all(tolerance == FIT_TOLERANCE for tolerance, _, _ in calls[len(grid) :])
+    errors = [evaluator.training_error(fitted) for _, _, fitted in grid]
+    assert calls[len(grid)][1] is grid[errors.index(min(errors))][2]  # the best, converged
+    assert any(found is fitted for _, _, fitted in calls[len(grid) :])

@@ -32,7 +32,7 @@ from scipy.integrate import trapezoid
 from ..effects import FitContext, Model
 from ..effects.base import OutputEvidence
 from ..effects.chain import SHIFT_HALF_TAPS
-from ..effects.model import LeastSquaresProblem
+from ..effects.model import FIT_TOLERANCE, LeastSquaresProblem
 from ..lines import ForeignLine
 from ..sections import zero_phase
 from ..tolerance import class2_level_tolerance_c
@@ -200,9 +200,15 @@ class Evaluator:
         values.flags.writeable = False
         return values
 
-    def fit(self, model: Model, hold: frozenset[str] = frozenset()) -> Model:
-        """Fit ``model`` on the estimation blocks (``hold``: parameters kept as they are)."""
-        return model.fit(*self._fit_inputs, self.data.training_rows, hold)
+    def fit(
+        self, model: Model, hold: frozenset[str] = frozenset(), tolerance: float = FIT_TOLERANCE
+    ) -> Model:
+        """Fit ``model`` on the estimation blocks.
+
+        ``hold``: parameters kept as they are; ``tolerance``: that of
+        :meth:`~tcomp_core.effects.model.Model.fit`.
+        """
+        return model.fit(*self._fit_inputs, self.data.training_rows, hold, tolerance)
 
     def _free_run(self, model: Model) -> NDArray[np.float64]:
         """The slow sensor's free-run simulation from the fast one's readings, shape (N,).

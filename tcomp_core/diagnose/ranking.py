@@ -426,6 +426,10 @@ def _at_published_scale(evaluator: Evaluator, fitted: Model) -> Model:
 OUTPUT_ERROR_GRID = 5
 OUTPUT_ERROR_XATOL = 0.02
 OUTPUT_ERROR_ITERATIONS = 8
+#: Relative tolerance (cost and step, scouts and polish) of the grid's fits. They only rank
+#: the grid's points; the best point's fit is then converged at the fit's own tolerance
+#: (:data:`~tcomp_core.effects.model.FIT_TOLERANCE`), and the search starts from it.
+GRID_TOLERANCE = 1e-4
 
 
 def _output_error_fit(
@@ -435,8 +439,9 @@ def _output_error_fit(
 
     Each of ``names`` in turn: a grid of :data:`OUTPUT_ERROR_GRID` values over its bounds
     (log-spaced for a time constant), the other parameters fitted by the cross-relation at each
-    (from their own starts: a start carried from a neighbour can sit in a poor basin), then a
-    bounded Brent search between the best point's neighbours. When ``coupled`` the others are
+    (from their own starts: a start carried from a neighbour can sit in a poor basin; to
+    :data:`GRID_TOLERANCE`, the best point's fit then converged), then a bounded Brent search
+    between the best point's neighbours. When ``coupled`` the others are
     refitted from the best point's fit at every trial (they move with the parameter:
     conduction's supports and τ with the legs' length), otherwise held there and refitted once
     at the end; the fit with the lowest free-run error is kept. Parameters of the model's
@@ -456,15 +461,17 @@ def _output_error_fit(
         fits, errors = [], []
         for value in grid:
             fitted = evaluator.fit(
-                Model(current.effects, {**current.params, name: float(value)}), hold=held
+                Model(current.effects, {**current.params, name: float(value)}),
+                hold=held,
+                tolerance=GRID_TOLERANCE,
             )
             fits.append(fitted)
             errors.append(evaluator.training_error(fitted))
         best = int(np.argmin(errors))
         low = grid[best - 1] if best > 0 else spec.lower
         high = grid[best + 1] if best + 1 < grid.size else spec.upper
-        at = fits[best]
-        trials: list[tuple[float, Model]] = [(errors[best], at)]
+        at = evaluator.fit(fits[best], hold=held)  # converged from where it ranked best
+        trials: list[tuple[float, Model]] = [(evaluator.training_error(at), at)]
 
         def error(
             x: float, name: str = name, at: Model = at, log: bool = log, trials=trials

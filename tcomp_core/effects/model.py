@@ -672,6 +672,7 @@ class Model:
         context: FitContext,
         rows: NDArray[np.bool_] | None = None,
         hold: frozenset[str] = frozenset(),
+        tolerance: float = FIT_TOLERANCE,
     ) -> Model:
         """Fit every parameter by the cross-relation criterion; returns the fitted model.
 
@@ -687,6 +688,10 @@ class Model:
             Intervals the criterion uses (default all).
         hold : frozenset of str
             Parameters held at their current values (not searched).
+        tolerance : float
+            Relative tolerance of the search's cost and step, its scouts' too (default
+            :data:`FIT_TOLERANCE`; looser only where a fit only ranks and the one chosen is
+            then converged).
 
         Raises
         ------
@@ -719,8 +724,8 @@ class Model:
                     bounds=(lower, upper),
                     max_nfev=_SCOUT_EVALUATIONS,
                     tr_solver=solver,
-                    ftol=FIT_TOLERANCE,
-                    xtol=FIT_TOLERANCE,
+                    ftol=tolerance,
+                    xtol=tolerance,
                 )
                 for x0 in starts
             ]
@@ -734,8 +739,8 @@ class Model:
             bounds=(lower, upper),
             x_scale="jac",
             tr_solver=solver,
-            ftol=FIT_TOLERANCE,
-            xtol=FIT_TOLERANCE,
+            ftol=tolerance,
+            xtol=tolerance,
         )
         if not np.isfinite(result.cost):
             raise EstimationError(f"the fit of {self.effects or 'the base model'} diverged")
