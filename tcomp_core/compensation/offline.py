@@ -13,6 +13,7 @@ reconstruction gives with that effect left first order (:func:`level_shift_c`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -119,9 +120,18 @@ def level_shift_c(
     if not model.keeps_first_order_level:
         return 0.0
     reference = reconstruct(*equivalent_readings(model.level_reference(), time, tc1, tc2, dt))
+    return _mean_offset(reference, gas)
+
+
+def _mean_offset(reference: NDArray[np.float64], gas: NDArray[np.float64]) -> float:
+    """Mean of ``reference - gas`` over their common start where both are finite, degrees C.
+
+    NaN where no sample is finite in both.
+    """
     count = min(gas.size, reference.size)
     difference = reference[:count] - gas[:count]
-    return float(np.mean(difference[np.isfinite(difference)]))
+    finite = difference[np.isfinite(difference)]
+    return float(np.mean(finite)) if finite.size else math.nan
 
 
 def default_path_gas(
@@ -184,12 +194,8 @@ def default_level_shift_c(
         default = default_path_gas(tc1, tc2, dt, taus, model.lines, choice, causal)
     except (TcompError, ValueError, np.linalg.LinAlgError):
         return None
-    count = min(gas.size, default.size)
-    difference = default[:count] - gas[:count]
-    finite = np.isfinite(difference)
-    if not finite.any():
-        return None
-    return float(np.mean(difference[finite]))
+    shift = _mean_offset(default, gas)
+    return None if math.isnan(shift) else shift
 
 
 def compensate(
