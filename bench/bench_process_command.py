@@ -15,10 +15,15 @@ once more and prints how far this tree's gas and ``/diagnostics`` (the τ histor
 re-estimation's τ, intervals, fit error, condition, as the node publishes them, 6 significant
 digits) are from the baseline's: a speed-up must not move them beyond the estimator's noise.
 ``--profile FILE`` runs this tree's command once under :mod:`cProfile` and prints the functions
-with the most cumulative and own time.
+with the most cumulative and own time. ``--split`` runs this tree's command alternately with the
+node's re-estimation period (``update_period_s``, 0.5 s) and with one of ``--sparse-period-s``
+(10 s: 20 times fewer re-estimations), and prints what one re-estimation costs (the difference
+over the difference in their number), what the rest of the command costs (reading, pairing,
+Kalman filtering, writing, start-up), the pairs/s the command would reach were the
+re-estimations free, and the time one re-estimation may take for 1 M pairs/s.
 
 Usage: ``python bench/bench_process_command.py [--minutes 10] [--rate-hz 5000]
-[--baseline-tree /work/wt-base] [--compare] [--profile out/process.prof]``.
+[--baseline-tree /work/wt-base] [--compare] [--profile out/process.prof] [--split]``.
 """
 
 from __future__ import annotations
@@ -125,6 +130,66 @@ def print_profile(path: Path, count: int = 30) -> None:
     stats.sort_stats("tottime").print_stats(count)
 
 
+def split_estimation(
+    bag: Path, pairs: int, seconds: float, repeat: int, sparse_s: float, extra: list[str]
+) -> None:
+    """Print the command's cost split into its re-estimations and the rest (``--split``).
+
+    Runs this tree's command ``repeat`` times at the node's re-estimation period and at
+    ``sparse_s``, alternately; the medians of the two give the cost of one re-estimation
+    (their difference over the difference in the number of re-estimations) and that of the
+    rest, in wall and CPU seconds.
+    """
+    from tcomp_core.online import OnlineConfig
+
+    period = OnlineConfig().update_period_s
+    counts = {period: seconds / period, sparse_s: seconds / sparse_s}
+    walls: dict[float, list[float]] = {period: [], sparse_s: []}
+    cpus: dict[float, list[float]] = {period: [], sparse_s: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for run in range(repeat):
+            for every in counts:
+                output = Path(tmp) / f"split_{run}_{every:g}"
+                wall, cpu = run_command(HERE, bag, output, [*extra, f"--update-period-s={every}"])
+                walls[every].append(wall)
+                cpus[every].append(cpu)
+                shutil.rmtree(output, ignore_errors=True)
+                print(
+                    f"  split run {run + 1}, re-estimation every {every:g} s: {wall:.2f} s wall, "
+                    f"{cpu:.2f} s CPU",
+                    flush=True,
+                )
+    wall = {every: statistics.median(values) for every, values in walls.items()}
+    cpu = {every: statistics.median(values) for every, values in cpus.items()}
+    extra_count = counts[period] - counts[sparse_s]
+    per_wall = (wall[period] - wall[sparse_s]) / extra_count
+    per_cpu = (cpu[period] - cpu[sparse_s]) / extra_count
+    rest_wall = wall[sparse_s] - counts[sparse_s] * per_wall
+    rest_cpu = cpu[sparse_s] - counts[sparse_s] * per_cpu
+    budget = (pairs / 1e6 - rest_wall) / counts[period]
+    print(f"split of this tree's command (medians of {repeat}):")
+    for every, count in counts.items():
+        print(
+            f"  re-estimation every {every:g} s ({count:.0f} of them): {wall[every]:.2f} s wall "
+            f"({pairs / wall[every]:.3g} pairs/s), {cpu[every]:.2f} s CPU"
+        )
+    print(f"  one re-estimation: {1e3 * per_wall:.2f} ms wall, {1e3 * per_cpu:.2f} ms CPU")
+    print(
+        f"  the rest (start-up, reading, pairing, filtering, writing): {rest_wall:.2f} s wall, "
+        f"{rest_cpu:.2f} s CPU: {pairs / rest_wall:.3g} pairs/s were re-estimation free"
+    )
+    if budget > 0:
+        print(
+            f"  1 M pairs/s leaves {1e3 * budget:.3f} ms per re-estimation "
+            f"({per_wall / budget:.1f}x less than it takes)"
+        )
+    else:
+        print(
+            "  1 M pairs/s is out of reach even with free re-estimations: the rest alone "
+            f"takes {rest_wall:.2f} s for {pairs} pairs"
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=10.0)
@@ -135,6 +200,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--compare", action="store_true", help="compare the output bags")
     parser.add_argument("--profile", type=Path, default=None, help="cProfile dump to write")
     parser.add_argument("--skip-timing", action="store_true", help="only --compare/--profile")
+    parser.add_argument(
+        "--split", action="store_true", help="split this tree's time: re-estimations, the rest"
+    )
+    parser.add_argument(
+        "--sparse-period-s", type=float, default=10.0, help="--split's sparse re-estimation period"
+    )
     parser.add_argument("extra", nargs="*", help="further tcomp process options (after --)")
     args = parser.parse_args(argv)
     bag = (args.cache / f"recorder_{args.rate_hz}hz_{args.minutes:g}min").resolve()
@@ -196,6 +267,10 @@ def main(argv: list[str] | None = None) -> int:
             wall, _ = run_command(HERE, bag, output, args.extra, profile=args.profile)
             print(f"profiled run (this tree): {wall:.2f} s under cProfile")
             print_profile(args.profile)
+    if args.split:
+        split_estimation(
+            bag, pairs, args.minutes * 60.0, args.repeat, args.sparse_period_s, args.extra
+        )
     return 0
 
 
