@@ -34,17 +34,6 @@ $(STAMP): setup.py setup.cfg package.xml
 	fi
 	touch $(STAMP)
 
-# numba's disk cache of the compiled loops (beside their modules, in __pycache__/), written once
-# before the tests start (python -m tcomp_core.warm_cache, 7 s of CPU on a fresh clone) instead
-# of by every test process and every worker they start before it exists: a fresh clone's
-# make pytest took 304 s where the same clone took 273 s with its cache warm. Redone when a
-# loop's source or the venv changes.
-LOOP_SOURCES := $(shell grep -rl --include='*.py' compile_loops tcomp_core)
-WARM_LOOPS := tcomp_core/__pycache__/.numba-cache-warm
-$(WARM_LOOPS): $(STAMP) $(LOOP_SOURCES) tcomp_core/warm_cache.py
-	$(PARALLEL) $(PY) -m tcomp_core.warm_cache
-	@mkdir -p $(@D) && touch $@
-
 # Everything: all tests and the static checks (ruff, mypy). One BLAS thread per test process:
 # the processes already fill the cores. The static checks run beside the tests instead of after
 # them, at the lowest priority (nice 19, below the tests' 10 and 0), so they take a small share
@@ -80,7 +69,7 @@ PYTEST_REST := $(PARALLEL) nice -n 10 $(PY) -m pytest $(PYTEST_FLAGS) \
 	-n $(PYTEST_WORKERS) --dist worksteal -m 'not realtime'
 PYTEST_REALTIME := $(PARALLEL) $(PY) -m pytest $(PYTEST_FLAGS) -m realtime \
 	-o cache_dir=.pytest_cache/realtime
-pytest: $(STAMP) $(WARM_LOOPS)
+pytest: $(STAMP)
 	@realtime_log=$$(mktemp); \
 	$(PYTEST_REALTIME) >"$$realtime_log" 2>&1 & realtime_pid=$$!; \
 	echo "$(PYTEST_REST)"; $(PYTEST_REST); rest=$$?; \
@@ -90,7 +79,7 @@ pytest: $(STAMP) $(WARM_LOOPS)
 	test $$rest -eq 0 && test $$realtime -eq 0
 
 # The edit-test loop: the tests not marked slow (see the markers in pyproject.toml).
-test-fast: $(STAMP) $(WARM_LOOPS)
+test-fast: $(STAMP)
 	$(PARALLEL) $(PY) -m pytest -n $(PYTEST_WORKERS) --dist worksteal -m "not slow"
 
 demo: $(STAMP)

@@ -14,16 +14,13 @@ import contextlib
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["COMPILED", "REWRITE_FLAGS", "compile_loops", "warm_compiler"]
+__all__ = ["REWRITE_FLAGS", "compile_loops", "warm_compiler"]
 
 #: Fast-math flags that only rewrite arithmetic, each step within an ulp or so: a division by a
 #: loop-invariant becomes a multiplication by its reciprocal (``arcp``), a product and a sum
 #: one fused multiply-add (``contract``). Not the flags that assume no NaN or infinity (a loop
 #: fed one must still return it) nor those that reorder sums.
 REWRITE_FLAGS = frozenset({"arcp", "contract"})
-#: Every loop :func:`compile_loops` has returned in this process (numba dispatchers, or the
-#: Python functions without numba): what :mod:`.warm_cache` must have run.
-COMPILED: list[Callable[..., Any]] = []
 
 
 def compile_loops(
@@ -36,17 +33,14 @@ def compile_loops(
     try:
         import numba
     except ImportError:  # pragma: no cover - numba is a dependency; Python is the fallback
-        COMPILED.extend(functions)
         return functions
     options: dict[str, Any] = {"nogil": True, "fastmath": set(fastmath)}
     try:
         compile_: Any = numba.njit(cache=True, **options)
-        loops = tuple(compile_(function) for function in functions)
+        return tuple(compile_(function) for function in functions)
     except RuntimeError:  # no writable cache directory (a read-only install, no home)
         compile_ = numba.njit(**options)
-        loops = tuple(compile_(function) for function in functions)
-    COMPILED.extend(loops)
-    return loops
+        return tuple(compile_(function) for function in functions)
 
 
 def _increment(value: float) -> float:
