@@ -130,6 +130,27 @@ def print_profile(path: Path, count: int = 30) -> None:
     stats.sort_stats("tottime").print_stats(count)
 
 
+def timed_runs(
+    bag: Path, cases: dict[str, tuple[Path, list[str]]], repeat: int
+) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
+    """Wall and CPU seconds of ``repeat`` rounds of the command, the cases alternating.
+
+    ``cases`` maps a name (printed) to (tree, extra options); each run's output is removed.
+    """
+    walls: dict[str, list[float]] = {name: [] for name in cases}
+    cpus: dict[str, list[float]] = {name: [] for name in cases}
+    with tempfile.TemporaryDirectory() as tmp:
+        for run in range(repeat):
+            for number, (name, (tree, extra)) in enumerate(cases.items()):
+                output = Path(tmp) / f"out_{run}_{number}"
+                wall, cpu = run_command(tree, bag, output, extra)
+                walls[name].append(wall)
+                cpus[name].append(cpu)
+                shutil.rmtree(output, ignore_errors=True)
+                print(f"  run {run + 1} {name}: {wall:.2f} s wall, {cpu:.2f} s CPU", flush=True)
+    return walls, cpus
+
+
 def split_estimation(
     bag: Path, pairs: int, seconds: float, repeat: int, sparse_s: float, extra: list[str]
 ) -> None:
@@ -144,23 +165,11 @@ def split_estimation(
 
     period = OnlineConfig().update_period_s
     counts = {period: seconds / period, sparse_s: seconds / sparse_s}
-    walls: dict[float, list[float]] = {period: [], sparse_s: []}
-    cpus: dict[float, list[float]] = {period: [], sparse_s: []}
-    with tempfile.TemporaryDirectory() as tmp:
-        for run in range(repeat):
-            for every in counts:
-                output = Path(tmp) / f"split_{run}_{every:g}"
-                wall, cpu = run_command(HERE, bag, output, [*extra, f"--update-period-s={every}"])
-                walls[every].append(wall)
-                cpus[every].append(cpu)
-                shutil.rmtree(output, ignore_errors=True)
-                print(
-                    f"  split run {run + 1}, re-estimation every {every:g} s: {wall:.2f} s wall, "
-                    f"{cpu:.2f} s CPU",
-                    flush=True,
-                )
-    wall = {every: statistics.median(values) for every, values in walls.items()}
-    cpu = {every: statistics.median(values) for every, values in cpus.items()}
+    labels = {every: f"re-estimation every {every:g} s" for every in counts}
+    cases = {labels[every]: (HERE, [*extra, f"--update-period-s={every}"]) for every in counts}
+    walls, cpus = timed_runs(bag, cases, repeat)
+    wall = {every: statistics.median(walls[label]) for every, label in labels.items()}
+    cpu = {every: statistics.median(cpus[label]) for every, label in labels.items()}
     extra_count = counts[period] - counts[sparse_s]
     per_wall = (wall[period] - wall[sparse_s]) / extra_count
     per_cpu = (cpu[period] - cpu[sparse_s]) / extra_count
@@ -221,17 +230,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.baseline_tree is not None:
         trees.insert(0, ("baseline", args.baseline_tree.resolve()))
     print(f"bag: {bag} ({size_mb:.0f} MB, recorder layout), {pairs} pairs")
-    walls: dict[str, list[float]] = {name: [] for name, _ in trees}
-    cpus: dict[str, list[float]] = {name: [] for name, _ in trees}
+    cases = {name: (tree, args.extra) for name, tree in trees}
+    walls, cpus = timed_runs(bag, cases, 0 if args.skip_timing else args.repeat)
     with tempfile.TemporaryDirectory() as tmp:
-        for run in range(0 if args.skip_timing else args.repeat):
-            for name, tree in trees:
-                output = Path(tmp) / f"out_{run}_{name.replace(' ', '_')}"
-                wall, cpu = run_command(tree, bag, output, args.extra)
-                walls[name].append(wall)
-                cpus[name].append(cpu)
-                shutil.rmtree(output, ignore_errors=True)
-                print(f"  run {run + 1} {name}: {wall:.2f} s wall, {cpu:.2f} s CPU", flush=True)
         if not args.skip_timing:
             print(f"tcomp process BAG -o OUT --no-diagnose {' '.join(args.extra)}")
             print(
