@@ -41,7 +41,8 @@ $(STAMP): setup.py setup.cfg package.xml
 		$(PY) -m uv pip install --quiet --native-tls --python $(PY) \
 			$(UV_FIND_LINKS) -e '.[$(EXTRAS)]'; then :; else \
 		echo "uv did not install the venv: pip installs it"; \
-		$(PY) -m pip install --quiet --upgrade pip && $(PY) -m pip install --quiet --no-compile -e '.[$(EXTRAS)]'; \
+		$(PY) -m pip install --quiet --upgrade pip && \
+			$(PY) -m pip install --quiet --no-compile -e '.[$(EXTRAS)]'; \
 	fi
 	touch $(STAMP)
 

@@ -208,7 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--baseline-tree", type=Path, default=None)
     parser.add_argument("--compare", action="store_true", help="compare the output bags")
     parser.add_argument("--profile", type=Path, default=None, help="cProfile dump to write")
-    parser.add_argument("--skip-timing", action="store_true", help="only --compare/--profile")
+    parser.add_argument(
+        "--skip-timing",
+        action="store_true",
+        help="skip timing the trees against each other (--compare, --profile, --split still run)",
+    )
     parser.add_argument(
         "--split", action="store_true", help="split this tree's time: re-estimations, the rest"
     )
