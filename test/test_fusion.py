@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import scipy.linalg
 from sim_records import make_pair
 
 from tcomp_core.fusion import (
@@ -21,6 +22,7 @@ from tcomp_core.fusion import smoother as smoother_module
 from tcomp_core.fusion.fitting import AR_ORDERS, AUTO_MODELS
 from tcomp_core.fusion.kalman import steady_state
 from tcomp_core.fusion.recursion import decay_horizon
+from tcomp_core.fusion.signal_model import butterworth_dynamics, butterworth_unit_variance
 from tcomp_core.metrics import reconstruction_error_percent
 from tcomp_core.reconstruct import reconstruct
 
@@ -269,6 +271,47 @@ def test_the_smoothers_initial_state_terms_are_the_matrix_recursion(
     assert np.max(np.abs(output - expected)) <= 1e-7 * scale
     scale = np.max(np.abs(expected_response))
     assert np.max(np.abs(response - expected_response)) <= 1e-7 * scale
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4, 8])
+@pytest.mark.parametrize("omega", [1e-3, 2.0 * np.pi * 37.5, 1e5])
+def test_the_butterworth_variance_is_the_lyapunov_solution(order, omega):
+    """The closed form against the stationary covariance of the model's own dynamics."""
+    drive = np.zeros((order, order))
+    drive[-1, -1] = 1.0
+    covariance = scipy.linalg.solve_continuous_lyapunov(butterworth_dynamics(order, omega), -drive)
+    assert butterworth_unit_variance(order, omega) == pytest.approx(covariance[0, 0], rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kind", "model", "duration"),
+    [
+        ("exhaust", "autoregressive", 2.0),  # 27 states, the backward pass lasts the record
+        ("ramp", "autoregressive", 4.0),  # converges before the start
+        ("sinusoid", "periodic", 1.0),
+        ("multisine", "band-limited", 2.0),
+        ("ramp", "random-walk", 1.0),
+    ],
+)
+def test_the_smoothed_variances_are_the_backward_covariance_recursion(kind, model, duration):
+    """c P_k cᵀ with P_k = P_f + J (P_(k+1) − P_p) Jᵀ from P_(N−1) = P_f, run to the record's
+    start one matrix product at a time, against the cumulative sums that replace it."""
+    pair = make_pair(kind, duration=duration, noise_percent=1.0, seed=5)
+    result = fuse(pair.tc1, pair.tc2, pair.dt, pair.tau1, pair.tau2, model=model)
+    space = result.model.state_space()
+    gains = steady_state(space)
+    f, c = space.transition, space.output
+    smoother = gains.filtered @ np.linalg.solve(gains.predicted, f).T
+    count = pair.tc1.size
+    expected = np.empty(count)
+    covariance = gains.filtered
+    expected[-1] = c @ covariance @ c
+    for k in range(count - 2, -1, -1):
+        covariance = gains.filtered + smoother @ (covariance - gains.predicted) @ smoother.T
+        expected[k] = c @ covariance @ c
+    rows = smoother_module._output_rows(smoother, c, decay_horizon(gains.closed_loop, count))
+    variances = smoother_module._smoothed_variances(gains, smoother, rows, count)
+    np.testing.assert_allclose(variances, expected, rtol=1e-9)
 
 
 @functools.lru_cache(maxsize=1)

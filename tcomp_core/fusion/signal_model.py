@@ -239,11 +239,14 @@ def _unit_butterworth_dynamics(order: int) -> NDArray[np.float64]:
 
 
 def butterworth_unit_variance(order: int, omega: float) -> float:
-    """Stationary variance of the Butterworth process's output per unit drive intensity."""
-    dynamics = butterworth_dynamics(order, omega)
-    drive = np.zeros((order, order))
-    drive[-1, -1] = 1.0
-    return float(scipy.linalg.solve_continuous_lyapunov(dynamics, -drive)[0, 0])
+    """Stationary variance of the Butterworth process's output per unit drive intensity.
+
+    The output of :func:`butterworth_dynamics` is the drive through ``1 / (ω B(s/ω))`` (B the
+    unit Butterworth polynomial, ``|B(jν)|² = 1 + ν^2n``), so the variance is
+    ``(1/2π) ∫ dν / (ω² (1 + (ν/ω)^2n)) = 1 / (2 n ω sin(π/2n))``: the solution of the
+    Lyapunov equation ``A P + P Aᵀ + e_n e_nᵀ = 0``'s first element, in closed form.
+    """
+    return 1.0 / (2.0 * order * omega * math.sin(math.pi / (2.0 * order)))
 
 
 def _van_loan(

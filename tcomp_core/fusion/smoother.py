@@ -24,10 +24,7 @@ from .recursion import (
 )
 from .signal_model import FusionModel, StateSpace
 
-__all__ = ["COVARIANCE_TOLERANCE", "smoothed_gas"]
-
-#: Relative change of the backward smoothed covariance below which it counts as converged.
-COVARIANCE_TOLERANCE = 1e-10
+__all__ = ["smoothed_gas"]
 
 
 def _smooth(
@@ -48,15 +45,16 @@ def _smooth(
     innovations = forward.innovations.copy()
     smoother = gains.filtered @ np.linalg.solve(gains.predicted, f).T
     blend = identity - smoother @ f
+    rows = _output_rows(smoother, c, decay_horizon(gains.closed_loop, count))
     start = None
     if forward.initial is not None:
-        start = _start_terms(gains, h, c, smoother, blend, forward.initial, count)
+        start = _start_terms(gains, h, c, smoother, blend, forward.initial, count, rows)
         length = start[0].shape[1]
         predicted[:, :length] += start[0]
         innovations[:, :length] -= start[0][-2:]
     filtered = predicted + apply_matrix(gains.gain, innovations)
     states = _backward(smoother, blend, filtered[:, :, None])[:, :, 0]
-    variances = _smoothed_variances(gains, smoother, c, count)
+    variances = _smoothed_variances(gains, smoother, rows, count)
     if start is not None and forward.initial_covariance is not None:
         output = start[1]
         variances[:length] += np.einsum("ki,ij,kj->k", output, forward.initial_covariance, output)
@@ -71,6 +69,7 @@ def _start_terms(
     blend: NDArray[np.float64],
     initial: NDArray[np.float64],
     count: int,
+    rows: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """What the initial state x_0 does to the predictions and to the smoothed gas.
 
@@ -78,7 +77,8 @@ def _start_terms(
     (:func:`~.recursion.decay_horizon`). The filtered states' sensitivity to x_0 is
     ``s_k = (I − K H) A^k``; the smoothed states' is ``S_k = J S_(k+1) + B s_k`` run back from
     ``S_L = 0`` (from ``S_(L−1) = s_(L−1)`` when the response lasts the whole record), and the
-    smoothed gas's is the row ``o_k = c S_k``.
+    smoothed gas's is the row ``o_k = c S_k``. ``rows`` are :func:`_output_rows` over the
+    closed loop's decay horizon when the caller has them.
 
     Returns
     -------
@@ -100,11 +100,8 @@ def _start_terms(
     # With A^j = V Λ^j V⁻¹ and g_m = c J^m: o_k = Σ_(j ≥ k) g_(j−k) B (I − K H) A^j
     # = [λ^k ∘ Σ_(m ≤ p) (g_m B (I − K H) V) ∘ λ^m] V⁻¹: a cumulative sum over m per mode,
     # O(n² L) where forming S_k takes O(n³ L).
-    rows = np.empty((length, n))  # g_m
-    rows[0] = c
-    if length > 1:
-        later = linear_recursion(smoother.T, np.zeros((n, length - 1, 1)), c[:, None])
-        rows[1:] = later[:, :, 0].T
+    if rows is None:
+        rows = _output_rows(smoother, c, length)
     terms = (rows @ (blend @ update @ vectors)) * powers.T  # (L, n)
     sums = np.cumsum(terms, axis=0)  # sums[p] = Σ_(m ≤ p)
     # The sum for o_k runs to p = L − 1 − k, or to L − 2 − k before the terminal term.
@@ -146,21 +143,37 @@ def _backward(
     return np.concatenate((backward[:, ::-1], filtered[:, -1:]), axis=1)
 
 
-def _smoothed_variances(
-    gains: SteadyState, smoother: NDArray[np.float64], output: NDArray[np.float64], count: int
+def _output_rows(
+    smoother: NDArray[np.float64], output: NDArray[np.float64], length: int
 ) -> NDArray[np.float64]:
-    """Output variance of the smoothed states (count,), from the end of the record backwards."""
-    variances = np.empty(count)
-    covariance = gains.filtered
-    variances[-1] = output @ covariance @ output
-    for k in range(count - 2, -1, -1):
-        updated = gains.filtered + smoother @ (covariance - gains.predicted) @ smoother.T
-        variances[k] = output @ updated @ output
-        change = np.max(np.abs(updated - covariance))
-        covariance = updated
-        if change <= COVARIANCE_TOLERANCE * np.max(np.abs(updated)):
-            variances[:k] = variances[k]
-            break
+    """The rows ``g_m = c J^m`` for m = 0..length-1, shape (length, n)."""
+    n = output.size
+    rows = np.empty((length, n))
+    rows[0] = output
+    if length > 1:
+        later = linear_recursion(smoother.T, np.zeros((n, length - 1, 1)), output[:, None])
+        rows[1:] = later[:, :, 0].T
+    return rows
+
+
+def _smoothed_variances(
+    gains: SteadyState, smoother: NDArray[np.float64], rows: NDArray[np.float64], count: int
+) -> NDArray[np.float64]:
+    """Output variance of the smoothed states (count,), from :func:`_output_rows` ``g_m``.
+
+    The backward recursion ``P_k = P_f + J (P_(k+1) − P_p) Jᵀ`` from ``P_(N−1) = P_f``
+    unrolls to ``P_(N−1−m) = Σ_(i<m) J^i Q J^iᵀ + J^m P_f J^mᵀ`` with ``Q = P_f − J P_p Jᵀ``
+    (the covariance of x_k given x_(k+1) and the past), so the variance ``c P_k cᵀ`` is a
+    cumulative sum of ``g_i Q g_iᵀ``: O(N n²) without a Python loop over samples. Beyond the
+    rows' horizon ``J^m`` has died out (below 1e-13) and the variance is the sum's limit.
+    """
+    length = rows.shape[0]
+    conditional = gains.filtered - smoother @ gains.predicted @ smoother.T
+    steps = np.einsum("mi,ij,mj->m", rows, conditional, rows)
+    ends = np.einsum("mi,ij,mj->m", rows, gains.filtered, rows)
+    sums = np.concatenate(([0.0], np.cumsum(steps)))  # sums[m] = Σ_(i<m)
+    variances = np.full(count, sums[-1])
+    variances[count - length :] = (sums[:length] + ends)[::-1]
     return variances
 
 
