@@ -5,6 +5,7 @@ import pytest
 from scipy.optimize._numdiff import approx_derivative
 
 from tcomp_core.effects import Model, make_context
+from tcomp_core.effects.model import _LastResiduals
 from tcomp_core.simulate_effects import simulate_effect
 
 PARAMS = {
@@ -53,3 +54,34 @@ def test_jacobian_equals_finite_differences(effects):
         rounding = 1e-7 * np.abs(problem.residuals(x)).max()
         error = np.abs(got[:, through_s] - central[:, through_s]).max(axis=0)
         assert np.all(error <= 1e-4 * scale + rounding)
+
+
+def test_the_residuals_at_the_last_point_are_not_evaluated_again():
+    calls = []
+
+    def residuals(x, penalty_only=False):
+        calls.append(penalty_only)
+        return np.array([1.0]) if penalty_only else np.append(2.0 * x, 1.0)
+
+    remembered = _LastResiduals(residuals)
+    x = np.array([1.0, 2.0])
+    first = remembered(x)
+    assert remembered.at(x.copy()) is first and len(calls) == 1
+    remembered(x + 1.0, penalty_only=True)  # the penalty rows alone are not remembered
+    assert remembered.at(x) is first and len(calls) == 2
+    np.testing.assert_array_equal(remembered.at(x + 1.0), [4.0, 6.0, 1.0])
+    assert len(calls) == 3
+
+
+def test_the_jacobian_where_scipy_just_evaluated_is_the_one_from_scratch():
+    """scipy asks for the Jacobian where it has just had the residuals; taken from them, it is
+    the same to the bit as with the residuals evaluated afresh."""
+    sim = simulate_effect("conduction", "multisine", duration=4.0, noise_percent=1.0, seed=4)
+    context = make_context(sim.time, sim.tc1, sim.tc2, sim.dt)
+    params = {"tau1": 0.0238, "tau2": 0.1168, **PARAMS["conduction"]}
+    problem = Model(("conduction",), params).problem(sim.tc1, sim.tc2, context)
+    x = problem.pack(params)
+    problem.residuals(x)
+    reused = problem.jacobian(x)
+    problem.residuals(x + 0.01)  # elsewhere: the Jacobian evaluates r(x) itself
+    np.testing.assert_array_equal(reused, problem.jacobian(x))

@@ -283,12 +283,14 @@ class _Jacobian:
     evaluation: s(t_k) enters residual k only through both poles of interval k, exactly as
     log τ1 and log τ2 do together, so ∂r_k/∂log s_k is the sum of the log τ1 and log τ2
     columns, and the chain rule gives ∂r_k/∂θ = (∂r_k/∂log s_k)(∂log s_k/∂θ).
-    Penalty rows (after the first ``n_rows``) are differenced in the usual way.
+    Penalty rows (after the first ``n_rows``) are differenced in the usual way. r(x) itself
+    is the residuals' last value when they were last evaluated at x (:class:`_LastResiduals`):
+    scipy asks for the Jacobian where it has just evaluated them.
     """
 
     def __init__(
         self,
-        residuals,
+        residuals: _LastResiduals,
         lower: NDArray[np.float64],
         upper: NDArray[np.float64],
         n_rows: int,
@@ -304,7 +306,7 @@ class _Jacobian:
         )
 
     def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        base = self.residuals(x)
+        base = self.residuals.at(x)
         jac = np.empty((base.size, x.size))
         differenced = [i for i in range(x.size) if i not in self.local]
         for i in differenced:
@@ -333,6 +335,30 @@ class _Jacobian:
 
 
 _EPS_SQRT = math.sqrt(np.finfo(float).eps)
+
+
+class _LastResiduals:
+    """A fit's residual function that keeps its last value (all rows, not the penalties alone).
+
+    :meth:`at` gives the residuals at x from that value when x is the point they were last
+    evaluated at (the same numbers: the residuals are a function of x alone).
+    """
+
+    def __init__(self, residuals: Callable[..., NDArray[np.float64]]) -> None:
+        self._residuals = residuals
+        self._last: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+
+    def __call__(self, x: NDArray[np.float64], penalty_only: bool = False) -> NDArray[np.float64]:
+        values = self._residuals(x, penalty_only)
+        if not penalty_only:
+            self._last = (np.array(x, dtype=np.float64), values)
+        return values
+
+    def at(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The residuals at x, evaluated again only when x is not where they last were."""
+        if self._last is not None and np.array_equal(self._last[0], x):
+            return self._last[1]
+        return self(x)
 
 
 def _level_prior_sd(context: FitContext) -> float:
@@ -848,8 +874,9 @@ class Model:
         upper = np.array(
             [math.log(s.upper) if s.name.startswith("tau") else s.upper for s in specs]
         )
+        remembered = _LastResiduals(residuals)
         jacobian = _Jacobian(
-            residuals,
+            remembered,
             lower,
             upper,
             n_rows,
@@ -862,7 +889,7 @@ class Model:
             upper=upper,
             n_rows=n_rows,
             unpack=unpack,
-            residuals=residuals,
+            residuals=remembered,
             jacobian=jacobian,
         )
 
