@@ -351,6 +351,10 @@ class _LastResiduals:
     def __call__(self, x: NDArray[np.float64], penalty_only: bool = False) -> NDArray[np.float64]:
         values = self._residuals(x, penalty_only)
         if not penalty_only:
+            # Kept and handed out: read-only, so that a caller writing into it (scipy's robust
+            # losses scale f in place; the fits use the linear one) fails instead of changing
+            # the value a later Jacobian takes.
+            values.flags.writeable = False
             self._last = (np.array(x, dtype=np.float64), values)
         return values
 
