@@ -20,17 +20,15 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from bench_diagnose_speed import REPOSITORY, child_environment, unpack_baseline
 
-REPOSITORY = Path(__file__).resolve().parents[1]
 RATES_HZ = (5000.0, 20000.0)
 
 
@@ -74,9 +72,10 @@ def records(directory: Path) -> dict[str, Path]:
 
 def run_child(tree: Path, source: Path, out: Path) -> dict[str, np.ndarray]:
     """One child of the code in ``tree``; its results."""
-    env = {**os.environ, "PYTHONPATH": str(tree), "OPENBLAS_NUM_THREADS": "1"}
-    command = [sys.executable, __file__, "--child", str(source), str(out)]
-    subprocess.run(command, env=env, check=True, cwd=tree)
+    environment = child_environment(tree)
+    environment.setdefault("OPENBLAS_NUM_THREADS", "1")
+    command = [sys.executable, str(Path(__file__).resolve()), "--child", str(source), str(out)]
+    subprocess.run(command, env=environment, check=True, cwd=tree)
     with np.load(out) as saved:
         return {key: saved[key] for key in saved.files}
 
@@ -88,24 +87,17 @@ def largest_relative(old: np.ndarray, new: np.ndarray) -> float:
 
 
 def main() -> None:
-    if len(sys.argv) == 4 and sys.argv[1] == "--child":
-        child(sys.argv[2], sys.argv[3])
-        return
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--baseline", default="main", help="commit to compare with")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--child", nargs=2, metavar=("SOURCE", "OUT"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child:
+        child(*args.child)
+        return
     with tempfile.TemporaryDirectory() as temporary:
         work = Path(temporary)
-        baseline = work / "baseline"
-        baseline.mkdir()
-        archive = subprocess.run(
-            ["git", "archive", args.baseline], cwd=REPOSITORY, check=True, capture_output=True
-        ).stdout
-        (work / "baseline.tar").write_bytes(archive)
-        with tarfile.open(work / "baseline.tar") as tar:
-            tar.extractall(baseline, filter="data")
-        trees = {"baseline": baseline, "current": REPOSITORY}
+        trees = {"baseline": unpack_baseline(args.baseline, work), "current": REPOSITORY}
         print(f"fuse() CPU seconds, fewest of {args.repeats}; baseline {args.baseline}")
         print(f"{'record':24s} {'baseline':>9s} {'current':>9s} {'ratio':>6s}  gas / std rel diff")
         for name, source in records(work).items():
