@@ -6,9 +6,10 @@ demo doubles as a usage example. First the paper's periodic ramp (τ1 = 0.0238 s
 every estimator, the reconstruction and the pre-filter sweep. Then ``tcomp diagnose`` on the
 bundled bag ``bags/conduction_500hz``, whose sensors lose heat to their supports: the base
 model's fit failing, where, the suspects, the refit and the error falling, and the HTML report.
-Last, the gas temperature compensated with the physics found (``--effects auto``), offline
-and as the node publishes it (``tcomp process``), its error against the reference falling, and
-the hot bag ``bags/radiation_500hz`` whose radiation error is removed in level.
+Last, the gas temperature compensated with the physics found (``--effects diagnosis.json``,
+the diagnosis just saved), offline and as the node publishes it (``tcomp process``), its error
+against the reference falling, and the hot bag ``bags/radiation_500hz`` whose radiation error
+is removed in level (``--effects auto``: diagnosed and compensated in one step).
 """
 
 from __future__ import annotations
@@ -79,10 +80,12 @@ def main(argv: list[str] | None = None) -> int:
             "--force",  # the demo may run again over its own outputs
         ]
     )
-    # Compensate with the physics found: the gas error against the reference falls.
+    # Compensate with the physics the diagnosis found (its JSON names the effects, fitted here
+    # without diagnosing again): the gas error against the reference falls.
+    found = str(out / "diagnosis.json")
     _run(
         [
-            *("reconstruct", str(args.effect_bag), "--effects", "auto"),
+            *("reconstruct", str(args.effect_bag), "--effects", found),
             *("-o", str(out / "compensated.csv"), "--force"),
             *("--png", str(out / "compensated.png")),
         ]
@@ -90,10 +93,11 @@ def main(argv: list[str] | None = None) -> int:
     _run(
         [
             *("process", str(args.effect_bag), "-o", str(out / "compensated_bag")),
-            *("--effects", "auto", "--no-diagnose", "--force"),
+            *("--effects", found, "--no-diagnose", "--force"),
         ]
     )
-    # A hot record: radiation to a colder wall makes both wires read low; compensated in level.
+    # A hot record: radiation to a colder wall makes both wires read low; compensated in level,
+    # with the effects the diagnosis run by ``--effects auto`` finds.
     _run(
         [
             *("reconstruct", str(args.radiation_bag), "--effects", "auto"),

@@ -41,12 +41,18 @@ def test_demo_runs_over_a_previous_runs_outputs(tmp_path, capsys):
         (out / name / "stale_0.mcap").write_bytes(STALE)
 
     assert main(["--out", str(out)]) == 0  # raises SystemExit on a failing step
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
     # The bags with a hidden effect: compensated, the gas error against the reference falls.
     falls = re.findall(r"read half a sample on: ([\d.]+) % first order -> ([\d.]+) %", printed)
     assert len(falls) == 2, printed
     assert all(float(after) < 0.5 * float(before) for before, after in falls), falls
+    # The conduction bag with the effects its saved diagnosis found, not diagnosed again.
+    assert printed.count("diagnosis.json: conduction (the final model of that diagnosis)") == 2
     assert "gas published with first-order+conduction" in printed
+    # Its first-order windows see the wires 38 % apart in gain: no advice to do what is done.
+    assert "published compensated with the output model of --effects" in captured.err
+    assert "--effects auto compensates it" not in captured.err
 
     # Every output replaced, none left over from before, nothing written beside them.
     assert sorted(p.name for p in out.iterdir()) == sorted((*DEMO_FILES, *DEMO_DIRECTORIES))

@@ -16,6 +16,7 @@ import pytest
 
 from tcomp_core.cli import main
 from tcomp_core.diagnose import diagnose, diagnosis_to_dict, fit_effects
+from tcomp_core.diagnose.saved import read_diagnosis_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import NoExcitationError
 from tcomp_core.io import Record, write_csv
@@ -213,6 +214,8 @@ def test_cli_diagnose_writes_json_and_report(tmp_path, capsys):
     html = (out_report / "index.html").read_text()
     assert "delay" in html and "data:image/png;base64," in html
     assert np.isfinite(document["final"]["error_pct"])
+    # --effects FILE.json of reconstruct, process and campaign reads the final model back.
+    assert read_diagnosis_effects(out_json) == ("delay",)
 
 
 def test_cli_fit_refuses_an_unknown_effect(tmp_path, capsys):

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from tcomp_core.cli import main
+from tcomp_core.diagnose.saved import read_diagnosis_effects
 from tcomp_core.diagnose.window_pool import diagnose_in_processes
 from tcomp_core.diagnose.windowed import (
     WindowResult,
@@ -296,6 +297,7 @@ def test_cli_prints_the_window_table_and_writes_the_json(tmp_path, capsys):
     assert document["verdict"] == "delay" and document["voting"] == 2
     assert [row["start_s"] for row in document["windows"]] == [0.0, 10.0]
     assert document["tau1"]["min"] <= document["tau1"]["median"] <= document["tau1"]["max"]
+    assert read_diagnosis_effects(out) == ("delay",)  # what --effects FILE.json takes
     html = (report / "index.html").read_text()
     assert "verdict: delay (the verdict of 2 of 2 windows)" in html
     assert html.count("<tr>") == 3 and "data:image/png;base64," in html

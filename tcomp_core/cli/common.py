@@ -94,6 +94,27 @@ def effect_list(text: str) -> list[str]:
     return list(names or ())
 
 
+def compensate_effects(text: str) -> str:
+    """``--effects`` of reconstruct, process and campaign as the engine takes it.
+
+    A diagnosis file (``*.json``, as ``tcomp diagnose --json`` writes it) gives the effects of
+    its final model, comma-separated (``"none"`` for first order), to be fitted on each record
+    as a list given by name is, and says which; any other value is returned as given.
+
+    Raises
+    ------
+    DataError
+        Naming the file and what is wrong with it.
+    """
+    if not text.strip().lower().endswith(".json"):
+        return text
+    from ..diagnose.saved import read_diagnosis_effects
+
+    found = ",".join(read_diagnosis_effects(text.strip())) or "none"
+    print(f"--effects {text.strip()}: {found} (the final model of that diagnosis)")
+    return found
+
+
 def add_source_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """Add ``--topics`` and ``--columns``: where tc1, tc2 and ref are in a bag or a CSV file."""
     parser.add_argument(

@@ -19,6 +19,7 @@ from .common import (
     add_force_argument,
     add_output_argument,
     add_source_arguments,
+    compensate_effects,
     non_negative_float,
     positive_float,
     source_names,
@@ -140,8 +141,9 @@ def add_stream_output_arguments(group: argparse.ArgumentParser | argparse._Argum
         "--effects",
         default="none",
         help="publish the gas temperature compensated with physics beyond first order: 'auto' "
-        "(the diagnosis's final model) or comma-separated effects, fitted on the first "
-        "--diagnose-samples pairs; 'none' (default) publishes first order",
+        "(the diagnosis's final model), comma-separated effects, or a diagnosis saved by "
+        "'tcomp diagnose --json' (FILE.json: the effects its final model found), fitted on "
+        "the first --diagnose-samples pairs; 'none' (default) publishes first order",
     )
     group.add_argument(
         "--compress",
@@ -178,7 +180,7 @@ def process_config(args: argparse.Namespace) -> ProcessConfig:
         columns=source_names(args.columns, "columns") or DEFAULT_COLUMNS,
         diagnose=not getattr(args, "no_diagnose", False),
         diagnose_samples=args.diagnose_samples,
-        effects=args.effects,
+        effects=compensate_effects(args.effects),
         compress=args.compress,
         overwrite=getattr(args, "force", False),
         frame_id=args.frame_id,

@@ -17,6 +17,7 @@ from .common import (
     add_estimator_arguments,
     add_force_argument,
     add_output_argument,
+    compensate_effects,
     estimate_with,
     positive_float,
     read_data,
@@ -82,8 +83,9 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
         "--effects",
         default="none",
         help="compensate with physics beyond the first-order model: 'auto' (the diagnosis's "
-        "final model), a comma-separated list of effects to fit, or 'none' (default); tau1, "
-        "tau2 are then fitted with the effects",
+        "final model), a comma-separated list of effects to fit, a diagnosis saved by 'tcomp "
+        "diagnose --json' (FILE.json: the effects its final model found, fitted here without "
+        "diagnosing again), or 'none' (default); tau1, tau2 are then fitted with the effects",
     )
     parser.add_argument(
         "--json",
@@ -113,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     record = read_data(args)
     if (args.tau1 is None) != (args.tau2 is None):
         raise TcompError("give both --tau1 and --tau2, or neither to estimate them")
-    effects = parse_compensate_effects(args.effects)
+    effects = parse_compensate_effects(compensate_effects(args.effects))
     if args.json is not None and effects == ():
         raise TcompError("--json describes the output model of --effects: give --effects too")
     if effects != ():

@@ -288,11 +288,16 @@ def _stream_warnings(source: Path, pairs: int, engine: Engine) -> list[str]:
         warnings.append(f"{source}: {compensator.misfit_warning}")
     disagreement = sensor_disagreement(compensator.last_status)
     if disagreement:
+        remedy = (
+            "the gas is published compensated with the output model of --effects"
+            if compensator.output is not None
+            else "the closing diagnosis tells which (unless --no-diagnose) and --effects auto "
+            "compensates it"
+        )
         warnings.append(
             f"{source}: in the last window's estimate {disagreement}: a physical effect the "
-            "first-order model lacks (conduction to the supports, radiation) or a "
-            "miscalibration: the closing diagnosis tells which (unless --no-diagnose) and "
-            "--effects auto compensates it"
+            f"first-order model lacks (conduction to the supports, radiation) or a "
+            f"miscalibration: {remedy}"
         )
     return warnings
 

@@ -1,0 +1,88 @@
+"""The effects a saved diagnosis found: ``tcomp diagnose --json`` read back.
+
+A test cell diagnoses one recording of a probe and compensates the others with the physics it
+found (``tcomp reconstruct --effects diagnosis.json``, ``tcomp process``, ``tcomp campaign``),
+each fitting those effects on its own record, as a list given by name would be, without
+diagnosing again.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..choices import parse_effect_list
+from ..errors import DataError
+
+__all__ = ["effects_of_diagnosis", "read_diagnosis_effects"]
+
+
+def effects_of_diagnosis(document: Mapping[str, Any]) -> tuple[str, ...]:
+    """The effects of a diagnosis document's final model, in the order it added them.
+
+    Parameters
+    ----------
+    document : mapping
+        What :func:`~tcomp_core.diagnose.diagnosis_to_dict` returns (the final model's
+        ``final.effects``), or, for a record diagnosed in windows,
+        :func:`~tcomp_core.diagnose.windowed.windowed_to_dict` (the effects of the first window
+        giving the whole record's ``verdict``).
+
+    Returns
+    -------
+    tuple of str
+        Effect names; empty when the first-order model was the final one.
+
+    Raises
+    ------
+    ValueError
+        If the document holds neither, or names an unknown effect.
+    """
+    final = document.get("final")
+    if isinstance(final, Mapping) and "effects" in final:
+        return _names(final["effects"], "final.effects")
+    verdict, windows = document.get("verdict"), document.get("windows")
+    if isinstance(verdict, str) and isinstance(windows, list):
+        for number, row in enumerate(windows):
+            if isinstance(row, Mapping) and row.get("verdict") == verdict:
+                return _names(row.get("effects"), f"windows[{number}].effects")
+        raise ValueError(f"no window gives the whole record's verdict {verdict!r}")
+    raise ValueError(
+        "no diagnosis in it: 'tcomp diagnose --json' writes the final model's effects under "
+        "final.effects (or, in windows, a verdict and the windows giving it)"
+    )
+
+
+def _names(value: object, where: str) -> tuple[str, ...]:
+    """Effect names from a document's list at ``where``, checked as ``--effects`` checks them."""
+    if not (isinstance(value, list) and all(isinstance(name, str) for name in value)):
+        raise ValueError(f"{where} is {value!r}, not a list of effect names")
+    return parse_effect_list(value) or ()
+
+
+def read_diagnosis_effects(path: str | Path) -> tuple[str, ...]:
+    """:func:`effects_of_diagnosis` of the JSON file ``path``.
+
+    Raises
+    ------
+    DataError
+        Naming the file and what is wrong with it (missing, unreadable, not JSON, no
+        diagnosis, an unknown effect).
+    """
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(f"{path}: no such diagnosis file") from None
+    except OSError as error:
+        raise DataError(f"{path}: cannot read the diagnosis ({error.strerror})") from error
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise DataError(f"{path}: not a diagnosis written as JSON ({error})") from error
+    if not isinstance(document, Mapping):
+        raise DataError(f"{path}: not a diagnosis (a JSON object is expected)")
+    try:
+        return effects_of_diagnosis(document)
+    except ValueError as error:
+        raise DataError(f"{path}: {error}") from error

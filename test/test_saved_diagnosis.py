@@ -1,0 +1,76 @@
+"""``--effects FILE.json``: the effects a saved diagnosis found, read back, and every way the
+file can be wrong named (the round trip through ``tcomp diagnose --json`` is checked in
+test_diagnose.py and test_diagnose_windows.py, and end to end by ``make demo``'s test)."""
+
+import json
+
+import pytest
+
+from tcomp_core.cli import main
+from tcomp_core.cli.common import compensate_effects
+from tcomp_core.diagnose.saved import effects_of_diagnosis, read_diagnosis_effects
+from tcomp_core.errors import DataError
+
+
+def _window(verdict, effects):
+    return {"index": 0, "verdict": verdict, "effects": effects}
+
+
+def test_the_final_models_effects_are_read_in_their_order():
+    document = {"verdict": "delay", "final": {"effects": ["delay", "calibration"]}}
+    assert effects_of_diagnosis(document) == ("delay", "calibration")
+    assert effects_of_diagnosis({"verdict": "none", "final": {"effects": []}}) == ()
+
+
+def test_a_diagnosis_in_windows_gives_the_effects_of_a_window_with_the_whole_verdict():
+    windows = [_window("none", []), _window("conduction", ["conduction"]), _window(None, [])]
+    assert effects_of_diagnosis({"verdict": "conduction", "windows": windows}) == ("conduction",)
+    assert effects_of_diagnosis({"verdict": "none", "windows": windows}) == ()
+    with pytest.raises(ValueError, match="no window gives the whole record's verdict 'delay'"):
+        effects_of_diagnosis({"verdict": "delay", "windows": windows})
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ('{"final": {"effects": ["smoke"]}}', "unknown effect 'smoke'"),
+        ('{"final": {"effects": "conduction"}}', "final.effects is 'conduction', not a list"),
+        ('{"verdict": "x", "windows": [{"verdict": "x", "effects": [1]}]}', r"windows\[0\]"),
+        ('{"tau1": 0.02}', "no diagnosis in it"),
+        ("[1, 2]", "a JSON object is expected"),
+        ("{not json", "not a diagnosis written as JSON"),
+    ],
+)
+def test_a_bad_diagnosis_file_is_named_with_what_is_wrong(tmp_path, text, message):
+    path = tmp_path / "diagnosis.json"
+    path.write_text(text)
+    with pytest.raises(DataError, match=message) as raised:
+        read_diagnosis_effects(path)
+    assert str(raised.value).startswith(f"{path}: ")
+
+
+def test_a_missing_file_is_an_error_naming_it(tmp_path):
+    with pytest.raises(DataError, match=r"nope\.json: no such diagnosis file"):
+        read_diagnosis_effects(tmp_path / "nope.json")
+
+
+def test_the_option_resolves_a_file_to_names_and_leaves_other_values_alone(tmp_path, capsys):
+    path = tmp_path / "Probe_A.JSON"
+    path.write_text(json.dumps({"final": {"effects": ["radiation", "delay"]}}))
+    assert compensate_effects(str(path)) == "radiation,delay"
+    assert f"--effects {path}: radiation,delay (the final model" in capsys.readouterr().out
+    path.write_text(json.dumps({"final": {"effects": []}}))
+    assert compensate_effects(str(path)) == "none"
+    for given in ("auto", "none", "conduction,delay", ""):
+        assert compensate_effects(given) == given
+
+
+def test_process_and_reconstruct_refuse_a_bad_file_before_writing_anything(tmp_path, capsys):
+    data = tmp_path / "run.csv"
+    data.write_text("time,tc1,tc2\n0,1,1\n0.1,1,1\n")
+    bad = tmp_path / "found.json"
+    bad.write_text('{"final": {"effects": ["smoke"]}}')
+    for verb, output in (("process", tmp_path / "out_bag"), ("reconstruct", tmp_path / "g.csv")):
+        assert main([verb, str(data), "-o", str(output), "--effects", str(bad)]) == 1
+        assert f"{bad}: unknown effect 'smoke'" in capsys.readouterr().err
+        assert not output.exists()
