@@ -5,11 +5,37 @@ test_diagnose.py and test_diagnose_windows.py, and end to end by ``make demo``'s
 import json
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tcomp_core.cli import main
 from tcomp_core.cli.common import compensate_effects
 from tcomp_core.diagnose.saved import effects_of_diagnosis, read_diagnosis_effects
+from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
+
+#: JSON values, effect names among the strings so that some documents are diagnoses.
+JSON = st.recursive(
+    st.none() | st.booleans() | st.floats() | st.sampled_from([*EFFECT_NAMES, "none"]) | st.text(),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner),
+    max_leaves=12,
+)
+#: Documents shaped like a diagnosis at the keys the reader looks at, their values anything.
+DOCUMENTS = st.fixed_dictionaries(
+    {},
+    optional={
+        "final": st.fixed_dictionaries({}, optional={"effects": JSON}) | JSON,
+        "verdict": st.sampled_from([*EFFECT_NAMES, "none"]) | JSON,
+        "windows": st.lists(
+            st.fixed_dictionaries(
+                {}, optional={"verdict": st.sampled_from(EFFECT_NAMES) | JSON, "effects": JSON}
+            )
+            | JSON,
+            max_size=3,
+        )
+        | JSON,
+    },
+)
 
 
 def _window(verdict, effects):
@@ -61,8 +87,8 @@ def test_the_option_resolves_a_file_to_names_and_leaves_other_values_alone(tmp_p
     assert f"--effects {path}: radiation,delay (the final model" in capsys.readouterr().out
     path.write_text(json.dumps({"final": {"effects": []}}))
     assert compensate_effects(str(path)) == "none"
-    for given in ("auto", "none", "conduction,delay", ""):
-        assert compensate_effects(given) == given
+    for value in ("auto", "none", "conduction,delay", ""):
+        assert compensate_effects(value) == value
 
 
 def test_process_and_reconstruct_refuse_a_bad_file_before_writing_anything(tmp_path, capsys):
@@ -74,3 +100,18 @@ def test_process_and_reconstruct_refuse_a_bad_file_before_writing_anything(tmp_p
         assert main([verb, str(data), "-o", str(output), "--effects", str(bad)]) == 1
         assert f"{bad}: unknown effect 'smoke'" in capsys.readouterr().err
         assert not output.exists()
+
+
+@settings(derandomize=True, max_examples=300, deadline=None)
+@given(st.one_of(DOCUMENTS.map(json.dumps), JSON.map(json.dumps), st.binary(max_size=64)))
+def test_any_file_gives_known_effect_names_or_a_data_error(tmp_path_factory, content):
+    path = tmp_path_factory.mktemp("saved") / "diagnosis.json"
+    path.write_bytes(content.encode() if isinstance(content, str) else content)
+    try:
+        found = read_diagnosis_effects(path)
+    except DataError as error:
+        assert str(error).startswith(f"{path}: ")
+    else:
+        assert isinstance(found, tuple)
+        assert all(name in EFFECT_NAMES for name in found)
+        assert len(set(found)) == len(found)
