@@ -296,7 +296,7 @@ def _stream_warnings(source: Path, pairs: int, engine: Engine) -> list[str]:
         )
         warnings.append(
             f"{source}: in the last window's estimate {disagreement}: a physical effect the "
-            f"first-order model lacks (conduction to the supports, radiation) or a "
+            "first-order model lacks (conduction to the supports, radiation) or a "
             f"miscalibration: {remedy}"
         )
     return warnings
