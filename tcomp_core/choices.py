@@ -40,6 +40,7 @@ __all__ = [
     "PaperMethod",
     "ReconstructFrom",
     "SignalKind",
+    "names_a_saved_diagnosis",
     "parse_effect_list",
 ]
 
@@ -110,6 +111,15 @@ PAPER_TAU1 = 0.0238
 PAPER_TAU2 = 0.1168
 PAPER_DT = 0.002
 PAPER_DURATION = 10.0
+
+
+def names_a_saved_diagnosis(effects: str) -> bool:
+    """Whether an ``effects`` value names a file ``tcomp diagnose --json`` wrote (``*.json``).
+
+    Such a value stands for the effects of that diagnosis's final model
+    (:func:`tcomp_core.diagnose.saved.effects_value`).
+    """
+    return effects.strip().lower().endswith(".json")
 
 
 def parse_effect_list(

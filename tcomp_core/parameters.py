@@ -299,11 +299,12 @@ PARAMETERS: tuple[ParameterSpec, ...] = (
         "effects",
         "none",
         "effects the background diagnosis adds to the first-order model, comma-separated "
-        "('none' = the first-order model alone), or 'auto' (the diagnosis's final model); they "
-        "change the diagnosis and the error it reports, and with compensate_effects the "
-        "published gas",
-        comment="none | auto (the diagnosis's final model) | comma-separated: "
-        + ", ".join(EFFECT_NAMES),
+        "('none' = the first-order model alone), 'auto' (the diagnosis's final model), or a "
+        "diagnosis saved by 'tcomp diagnose --json' (FILE.json: the effects its final model "
+        "found, read when the parameter is set); they change the diagnosis and the error it "
+        "reports, and with compensate_effects the published gas",
+        comment="none | auto (the diagnosis's final model) | FILE.json (a saved diagnosis's) | "
+        "comma-separated: " + ", ".join(EFFECT_NAMES),
     ),
     ParameterSpec(
         "compensate_effects",

@@ -10,9 +10,10 @@ from hypothesis import strategies as st
 
 from tcomp_core.cli import main
 from tcomp_core.cli.common import compensate_effects
-from tcomp_core.diagnose.saved import effects_of_diagnosis, read_diagnosis_effects
+from tcomp_core.diagnose.saved import effects_of_diagnosis, effects_value, read_diagnosis_effects
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
+from tcomp_core.online import OnlineConfig
 
 #: JSON values, effect names among the strings so that some documents are diagnoses.
 JSON = st.recursive(
@@ -89,6 +90,19 @@ def test_the_option_resolves_a_file_to_names_and_leaves_other_values_alone(tmp_p
     assert compensate_effects(str(path)) == "none"
     for value in ("auto", "none", "conduction,delay", ""):
         assert compensate_effects(value) == value
+
+
+def test_the_engines_config_reads_the_file_once_into_names(tmp_path):
+    path = tmp_path / "found.json"
+    path.write_text(json.dumps({"final": {"effects": ["velocity"]}}))
+    config = OnlineConfig(effects=f" {path} ")
+    assert config.effects == "velocity" and config.requested_effects == ("velocity",)
+    path.unlink()  # the engine holds the names, not the file
+    assert config.requested_effects == ("velocity",)
+    assert OnlineConfig.from_parameters({"effects": "auto"}).requested_effects is None
+    with pytest.raises(DataError, match="no such diagnosis file"):
+        OnlineConfig.from_parameters({"effects": str(path)})
+    assert effects_value("delay, calibration") == "delay, calibration"
 
 
 def test_process_and_reconstruct_refuse_a_bad_file_before_writing_anything(tmp_path, capsys):

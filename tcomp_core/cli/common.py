@@ -11,7 +11,13 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..choices import DEFAULT_METHOD, DEFAULT_TOPICS, METHODS, parse_effect_list
+from ..choices import (
+    DEFAULT_METHOD,
+    DEFAULT_TOPICS,
+    METHODS,
+    names_a_saved_diagnosis,
+    parse_effect_list,
+)
 from ..errors import TcompError
 
 if TYPE_CHECKING:
@@ -106,11 +112,11 @@ def compensate_effects(text: str) -> str:
     DataError
         Naming the file and what is wrong with it.
     """
-    if not text.strip().lower().endswith(".json"):
+    if not names_a_saved_diagnosis(text):
         return text
-    from ..diagnose.saved import read_diagnosis_effects
+    from ..diagnose.saved import effects_value
 
-    found = ",".join(read_diagnosis_effects(text.strip())) or "none"
+    found = effects_value(text)
     print(f"--effects {text.strip()}: {found} (the final model of that diagnosis)")
     return found
 

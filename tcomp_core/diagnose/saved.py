@@ -13,10 +13,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..choices import parse_effect_list
+from ..choices import names_a_saved_diagnosis, parse_effect_list
 from ..errors import DataError
 
-__all__ = ["effects_of_diagnosis", "read_diagnosis_effects"]
+__all__ = ["effects_of_diagnosis", "effects_value", "read_diagnosis_effects"]
 
 
 def effects_of_diagnosis(document: Mapping[str, Any]) -> tuple[str, ...]:
@@ -86,3 +86,19 @@ def read_diagnosis_effects(path: str | Path) -> tuple[str, ...]:
         return effects_of_diagnosis(document)
     except ValueError as error:
         raise DataError(f"{path}: {error}") from error
+
+
+def effects_value(effects: str) -> str:
+    """An ``effects`` value with a saved diagnosis (``*.json``) replaced by its effects.
+
+    Returns the final model's effects comma-separated (``"none"`` for first order), as
+    ``--effects`` and the node's ``effects`` take a list; any other value as given.
+
+    Raises
+    ------
+    DataError
+        As :func:`read_diagnosis_effects`.
+    """
+    if not names_a_saved_diagnosis(effects):
+        return effects
+    return ",".join(read_diagnosis_effects(effects.strip())) or "none"

@@ -12,7 +12,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import parameters
-from ..choices import RECONSTRUCT_FROM, RECONSTRUCTIONS, SIGNAL_MODELS, ReconstructFrom
+from ..choices import (
+    RECONSTRUCT_FROM,
+    RECONSTRUCTIONS,
+    SIGNAL_MODELS,
+    ReconstructFrom,
+    names_a_saved_diagnosis,
+)
 from ..estimators import Estimate
 from ..validation import MIN_SAMPLES
 
@@ -123,7 +129,8 @@ class OnlineConfig:
         discontinuity (a clock reset, a replayed bag starting over): the engine restarts.
     effects : str
         Effects the background diagnosis adds to the first-order model (comma-separated,
-        ``'none'``), or ``'auto'``.
+        ``'none'``), ``'auto'``, or a diagnosis saved by ``tcomp diagnose --json``
+        (``*.json``: its final model's effects, read when the config is made).
     compensate_effects : bool
         Publish the gas of an accepted background fit of ``effects``.
     diagnosis_period_s : float
@@ -184,6 +191,11 @@ class OnlineConfig:
         return cls(**{name: values[name] for name in ENGINE_PARAMETERS if name in values})
 
     def __post_init__(self) -> None:
+        if isinstance(self.effects, str) and names_a_saved_diagnosis(self.effects):
+            from ..diagnose.saved import effects_value
+
+            # Read once, here: the engine holds the names, whatever becomes of the file.
+            object.__setattr__(self, "effects", effects_value(self.effects))
         for name in ENGINE_PARAMETERS:
             parameters.spec(name).check(getattr(self, name))
         checks = [

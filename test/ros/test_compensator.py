@@ -101,6 +101,26 @@ def test_parameter_change_applies_and_bad_value_is_rejected(harness):
 
 
 @pytest.mark.slow
+def test_effects_from_a_saved_diagnosis_are_read_and_a_bad_file_is_rejected(harness, tmp_path):
+    h = harness()
+    node = h.node
+    found = tmp_path / "probe_a.json"
+    found.write_text('{"verdict": "conduction", "final": {"effects": ["conduction", "delay"]}}')
+    assert node.set_parameters([Parameter("effects", value=str(found))])[0].successful
+    assert node.engine.config.effects == "conduction,delay"
+    assert node.engine.config.requested_effects == ("conduction", "delay")
+    for text, why in (("{", "not a diagnosis written as JSON"), ('{"final": 1}', "no diagnosis")):
+        found.write_text(text)
+        result = node.set_parameters([Parameter("effects", value=str(found))])[0]
+        assert not result.successful
+        assert result.reason.startswith(f"{found}: ") and why in result.reason, result.reason
+    missing = str(tmp_path / "nope.json")
+    result = node.set_parameters([Parameter("effects", value=missing)])[0]
+    assert not result.successful and "no such diagnosis file" in result.reason
+    assert node.engine.config.effects == "conduction,delay"  # the last accepted file's
+
+
+@pytest.mark.slow
 def test_method_change_at_run_time_takes_effect(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=4.0, seed=2)
     h = harness(window_s=3.0, update_period_s=0.1)
