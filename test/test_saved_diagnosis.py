@@ -14,6 +14,7 @@ from tcomp_core.diagnose.saved import effects_of_diagnosis, effects_value, read_
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
 from tcomp_core.online import OnlineConfig
+from tcomp_core.process import ProcessConfig
 
 #: JSON values, effect names among the strings so that some documents are diagnoses.
 JSON = st.recursive(
@@ -103,6 +104,8 @@ def test_the_engines_config_reads_the_file_once_into_names(tmp_path):
     with pytest.raises(DataError, match="no such diagnosis file"):
         OnlineConfig.from_parameters({"effects": str(path)})
     assert effects_value("delay, calibration") == "delay, calibration"
+    path.write_text(json.dumps({"final": {"effects": ["delay"]}}))
+    assert ProcessConfig(effects=str(path)).effects == "delay"  # process() through the API
 
 
 def test_process_and_reconstruct_refuse_a_bad_file_before_writing_anything(tmp_path, capsys):

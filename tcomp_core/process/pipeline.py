@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import parameters
+from ..choices import names_a_saved_diagnosis
 from ..errors import DataError, TcompError
 from ..io import (
     DEFAULT_COLUMNS,
@@ -87,9 +88,10 @@ class ProcessConfig:
         ``hardware_id`` of the diagnostic statuses.
     effects : str
         The model the published gas uses: ``"none"`` (first order), ``"auto"`` (the
-        diagnosis's final model) or comma-separated effects, fitted on the first
-        ``diagnose_samples`` pairs (:mod:`.output_model`) and taken by the node's rules
-        (:func:`tcomp_core.online.diagnosis.judge_output`).
+        diagnosis's final model), comma-separated effects, or a diagnosis saved by ``tcomp
+        diagnose --json`` (``*.json``: its final model's effects, read when the config is
+        made), fitted on the first ``diagnose_samples`` pairs (:mod:`.output_model`) and taken
+        by the node's rules (:func:`tcomp_core.online.diagnosis.judge_output`).
     """
 
     online: OnlineConfig = field(default_factory=OnlineConfig)
@@ -105,6 +107,10 @@ class ProcessConfig:
     effects: str = "none"
 
     def __post_init__(self) -> None:
+        if names_a_saved_diagnosis(self.effects):
+            from ..diagnose.saved import effects_value
+
+            object.__setattr__(self, "effects", effects_value(self.effects))
         if not (math.isfinite(self.batch_s) and self.batch_s > 0.0):
             raise ValueError(f"batch_s={self.batch_s!r} must be > 0 s")
         if self.diagnose_samples < MIN_DIAGNOSIS_SAMPLES:
