@@ -53,6 +53,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.timer import Timer
 from sensor_msgs.msg import Temperature
 
+from tcomp_core.choices import names_a_saved_diagnosis
 from tcomp_core.compensation import OutputModel
 from tcomp_core.errors import DataError
 from tcomp_core.io import Encoder, decode_message
@@ -245,6 +246,14 @@ class CompensatorNode(Node):
         values = dict(self._values)
         values.update({parameter.name: parameter.value for parameter in parameters})
         changed = {name for name in values if values[name] != self._values[name]}
+        # A saved diagnosis is read again whenever it is set, its path the same or not.
+        changed |= {
+            parameter.name
+            for parameter in parameters
+            if parameter.name == "effects"
+            and isinstance(parameter.value, str)
+            and names_a_saved_diagnosis(parameter.value)
+        }
         self._values = values
         if not changed:
             return

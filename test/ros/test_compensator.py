@@ -109,6 +109,9 @@ def test_effects_from_a_saved_diagnosis_are_read_and_a_bad_file_is_rejected(harn
     assert node.set_parameters([Parameter("effects", value=str(found))])[0].successful
     assert node.engine.config.effects == "conduction,delay"
     assert node.engine.config.requested_effects == ("conduction", "delay")
+    found.write_text('{"final": {"effects": ["radiation"]}}')  # the probe diagnosed again
+    assert node.set_parameters([Parameter("effects", value=str(found))])[0].successful
+    assert node.engine.config.effects == "radiation"  # the same path, read again
     for text, why in (("{", "not a diagnosis written as JSON"), ('{"final": 1}', "no diagnosis")):
         found.write_text(text)
         result = node.set_parameters([Parameter("effects", value=str(found))])[0]
@@ -117,7 +120,7 @@ def test_effects_from_a_saved_diagnosis_are_read_and_a_bad_file_is_rejected(harn
     missing = str(tmp_path / "nope.json")
     result = node.set_parameters([Parameter("effects", value=missing)])[0]
     assert not result.successful and "no such diagnosis file" in result.reason
-    assert node.engine.config.effects == "conduction,delay"  # the last accepted file's
+    assert node.engine.config.effects == "radiation"  # the last accepted file's
 
 
 @pytest.mark.slow
