@@ -254,10 +254,16 @@ class CompensatorNode(Node):
             and isinstance(parameter.value, str)
             and names_a_saved_diagnosis(parameter.value)
         }
-        self._values = values
         if not changed:
+            self._values = values
             return
-        self._engine.reconfigure(OnlineConfig.from_parameters(values))
+        try:
+            config = OnlineConfig.from_parameters(values)
+        except (ValueError, TypeError) as exc:  # a saved diagnosis gone since it was checked
+            self.get_logger().error(f"parameters not applied, the engine keeps its own: {exc}")
+            return
+        self._values = values
+        self._engine.reconfigure(config)
         if "update_period_s" in changed:
             self._estimate_timer.cancel()
             self.destroy_timer(self._estimate_timer)
