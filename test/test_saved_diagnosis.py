@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tcomp_core.cli import main
+from tcomp_core.cli import build_parser, main
 from tcomp_core.cli.common import compensate_effects
 from tcomp_core.diagnose.saved import effects_of_diagnosis, effects_value, read_diagnosis_effects
 from tcomp_core.effects import EFFECT_NAMES
@@ -91,6 +91,17 @@ def test_the_option_resolves_a_file_to_names_and_leaves_other_values_alone(tmp_p
     assert compensate_effects(str(path)) == "none"
     for value in ("auto", "none", "conduction,delay", ""):
         assert compensate_effects(value) == value
+
+
+def test_fit_takes_the_effects_of_a_saved_diagnosis_and_names_a_bad_one(tmp_path, capsys):
+    found, data = tmp_path / "found.json", tmp_path / "run.csv"
+    found.write_text(json.dumps({"final": {"effects": ["radiation", "delay"]}}))
+    args = build_parser().parse_args(["fit", str(data), "--effects", str(found)])
+    assert args.effects == ["radiation", "delay"]
+    found.write_text(json.dumps({"final": {"effects": ["smoke"]}}))
+    with pytest.raises(SystemExit):
+        main(["fit", str(data), "--effects", str(found)])
+    assert f"{found}: unknown effect 'smoke'" in capsys.readouterr().err
 
 
 def test_the_engines_config_reads_the_file_once_into_names(tmp_path):

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from ..choices import EFFECT_NAMES
+from ..choices import EFFECT_NAMES, names_a_saved_diagnosis
+from ..errors import DataError
 from .common import Verbs, add_data_arguments, effect_list, read_data
 from .diagnosis import add_outputs, write_diagnosis
 
@@ -22,13 +23,32 @@ def add_parser(verbs: Verbs) -> argparse.ArgumentParser:
     add_data_arguments(parser)
     parser.add_argument(
         "--effects",
-        type=effect_list,
+        type=_fitted_effects,
         required=True,
-        help=f"comma-separated effects to add, from {', '.join(EFFECT_NAMES)}",
+        help=f"comma-separated effects to add, from {', '.join(EFFECT_NAMES)}, or a diagnosis "
+        "saved by 'tcomp diagnose --json' (FILE.json: the effects its final model found)",
     )
     add_outputs(parser)
     parser.set_defaults(handler=run)
     return parser
+
+
+def _fitted_effects(text: str) -> list[str]:
+    """Argument type of ``--effects``: :func:`effect_list`, or a saved diagnosis's effects.
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Naming the unknown effect, or the diagnosis file and what is wrong with it.
+    """
+    if names_a_saved_diagnosis(text):
+        from ..diagnose.saved import effects_value
+
+        try:
+            text = effects_value(text)
+        except DataError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return effect_list(text)
 
 
 def run(args: argparse.Namespace) -> int:
