@@ -117,7 +117,7 @@ def names_a_saved_diagnosis(effects: str) -> bool:
     """Whether an ``effects`` value names a file ``tcomp diagnose --json`` wrote (``*.json``).
 
     Such a value stands for the effects of that diagnosis's final model
-    (:func:`tcomp_core.diagnose.saved.effects_value`).
+    (:func:`tcomp_core.diagnose.saved.saved_diagnosis_effects`).
     """
     return effects.strip().lower().endswith(".json")
 

@@ -10,7 +10,11 @@ from hypothesis import strategies as st
 
 from tcomp_core.cli import build_parser, main
 from tcomp_core.cli.common import compensate_effects
-from tcomp_core.diagnose.saved import effects_of_diagnosis, effects_value, read_diagnosis_effects
+from tcomp_core.diagnose.saved import (
+    effects_of_diagnosis,
+    read_diagnosis_effects,
+    saved_diagnosis_effects,
+)
 from tcomp_core.effects import EFFECT_NAMES
 from tcomp_core.errors import DataError
 from tcomp_core.online import OnlineConfig
@@ -114,7 +118,7 @@ def test_the_engines_config_reads_the_file_once_into_names(tmp_path):
     assert OnlineConfig.from_parameters({"effects": "auto"}).requested_effects is None
     with pytest.raises(DataError, match="no such diagnosis file"):
         OnlineConfig.from_parameters({"effects": str(path)})
-    assert effects_value("delay, calibration") == "delay, calibration"
+    assert saved_diagnosis_effects("delay, calibration") == "delay, calibration"
     path.write_text(json.dumps({"final": {"effects": ["delay"]}}))
     assert ProcessConfig(effects=str(path)).effects == "delay"  # process() through the API
 

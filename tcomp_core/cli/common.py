@@ -101,7 +101,7 @@ def effect_list(text: str) -> list[str]:
 
 
 def compensate_effects(text: str) -> str:
-    """``--effects`` of reconstruct, process and campaign as the engine takes it.
+    """``--effects`` of reconstruct, process, campaign and fit as the engine takes it.
 
     A diagnosis file (``*.json``, as ``tcomp diagnose --json`` writes it) gives the effects of
     its final model, comma-separated (``"none"`` for first order), to be fitted on each record
@@ -114,9 +114,9 @@ def compensate_effects(text: str) -> str:
     """
     if not names_a_saved_diagnosis(text):
         return text
-    from ..diagnose.saved import effects_value
+    from ..diagnose.saved import saved_diagnosis_effects  # loads scipy: only for a file
 
-    found = effects_value(text)
+    found = saved_diagnosis_effects(text)
     print(f"--effects {text.strip()}: {found} (the final model of that diagnosis)")
     return found
 

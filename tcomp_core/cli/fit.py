@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from ..choices import EFFECT_NAMES, names_a_saved_diagnosis
+from ..choices import EFFECT_NAMES
 from ..errors import DataError
-from .common import Verbs, add_data_arguments, effect_list, read_data
+from .common import Verbs, add_data_arguments, compensate_effects, effect_list, read_data
 from .diagnosis import add_outputs, write_diagnosis
 
 __all__ = ["add_parser", "run"]
@@ -41,13 +41,10 @@ def _fitted_effects(text: str) -> list[str]:
     argparse.ArgumentTypeError
         Naming the unknown effect, or the diagnosis file and what is wrong with it.
     """
-    if names_a_saved_diagnosis(text):
-        from ..diagnose.saved import effects_value
-
-        try:
-            text = effects_value(text)
-        except DataError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
+    try:
+        text = compensate_effects(text)
+    except DataError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     return effect_list(text)
 
 

@@ -16,7 +16,7 @@ from typing import Any
 from ..choices import names_a_saved_diagnosis, parse_effect_list
 from ..errors import DataError
 
-__all__ = ["effects_of_diagnosis", "effects_value", "read_diagnosis_effects"]
+__all__ = ["effects_of_diagnosis", "read_diagnosis_effects", "saved_diagnosis_effects"]
 
 
 def effects_of_diagnosis(document: Mapping[str, Any]) -> tuple[str, ...]:
@@ -88,7 +88,7 @@ def read_diagnosis_effects(path: str | Path) -> tuple[str, ...]:
         raise DataError(f"{path}: {error}") from error
 
 
-def effects_value(effects: str) -> str:
+def saved_diagnosis_effects(effects: str) -> str:
     """An ``effects`` value with a saved diagnosis (``*.json``) replaced by its effects.
 
     Returns the final model's effects comma-separated (``"none"`` for first order), as

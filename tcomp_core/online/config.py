@@ -17,8 +17,8 @@ from ..choices import (
     RECONSTRUCTIONS,
     SIGNAL_MODELS,
     ReconstructFrom,
-    names_a_saved_diagnosis,
 )
+from ..diagnose.saved import saved_diagnosis_effects
 from ..estimators import Estimate
 from ..validation import MIN_SAMPLES
 
@@ -191,11 +191,10 @@ class OnlineConfig:
         return cls(**{name: values[name] for name in ENGINE_PARAMETERS if name in values})
 
     def __post_init__(self) -> None:
-        if isinstance(self.effects, str) and names_a_saved_diagnosis(self.effects):
-            from ..diagnose.saved import effects_value
-
-            # Read once, here: the engine holds the names, whatever becomes of the file.
-            object.__setattr__(self, "effects", effects_value(self.effects))
+        if isinstance(self.effects, str):
+            # A saved diagnosis is read once, here: the engine holds the names, whatever
+            # becomes of the file.
+            object.__setattr__(self, "effects", saved_diagnosis_effects(self.effects))
         for name in ENGINE_PARAMETERS:
             parameters.spec(name).check(getattr(self, name))
         checks = [

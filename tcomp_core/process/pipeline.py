@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .. import parameters
-from ..choices import names_a_saved_diagnosis
+from ..diagnose.saved import saved_diagnosis_effects
 from ..errors import DataError, TcompError
 from ..io import (
     DEFAULT_COLUMNS,
@@ -107,10 +107,7 @@ class ProcessConfig:
     effects: str = "none"
 
     def __post_init__(self) -> None:
-        if names_a_saved_diagnosis(self.effects):
-            from ..diagnose.saved import effects_value
-
-            object.__setattr__(self, "effects", effects_value(self.effects))
+        object.__setattr__(self, "effects", saved_diagnosis_effects(self.effects))
         if not (math.isfinite(self.batch_s) and self.batch_s > 0.0):
             raise ValueError(f"batch_s={self.batch_s!r} must be > 0 s")
         if self.diagnose_samples < MIN_DIAGNOSIS_SAMPLES:
