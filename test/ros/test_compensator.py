@@ -229,7 +229,12 @@ def test_out_of_order_and_duplicate_stamps(harness):
 def test_silent_sensor_is_an_error_and_recovery_is_seen(harness):
     data = simulate_pair("ramp", noise_percent=0.5, duration=12.0, seed=8)
     stamps = stamps_for(data.tc1.size, data.dt)
-    h = harness(window_s=2.0, update_period_s=0.1, silence_timeout_s=0.5)
+    # The signal model is named: 'auto' fits it off the stream, and when its full comparison
+    # lands after the gap it may take the band-limited model, which widens the std at the
+    # ramp's corners (a WARN that is right, but not about the silence: CI saw it once).
+    h = harness(
+        window_s=2.0, update_period_s=0.1, silence_timeout_s=0.5, signal_model="random-walk"
+    )
     h.feed(stamps[:1500], data.tc1[:1500], data.tc2[:1500])
     # tc2 goes silent while tc1 goes on.
     for k in range(1500, 2000):
