@@ -31,7 +31,7 @@ DOCUMENTS = st.fixed_dictionaries(
     {},
     optional={
         "final": st.fixed_dictionaries({}, optional={"effects": JSON}) | JSON,
-        "verdict": st.sampled_from([*EFFECT_NAMES, "none"]) | JSON,
+        "verdict": st.sampled_from([*EFFECT_NAMES, "none", "unexplained"]) | JSON,
         "windows": st.lists(
             st.fixed_dictionaries(
                 {}, optional={"verdict": st.sampled_from(EFFECT_NAMES) | JSON, "effects": JSON}
@@ -60,6 +60,23 @@ def test_a_diagnosis_in_windows_gives_the_effects_of_a_window_with_the_whole_ver
     assert effects_of_diagnosis({"verdict": "none", "windows": windows}) == ()
     with pytest.raises(ValueError, match="no window gives the whole record's verdict 'delay'"):
         effects_of_diagnosis({"verdict": "delay", "windows": windows})
+
+
+def test_a_diagnosis_that_ended_unexplained_is_refused_with_its_residual():
+    said = "the final model (first order) leaves 37 % against a noise floor of 1 %"
+    whole = {"verdict": "unexplained", "final": {"effects": []}, "unexplained": said}
+    windows = {"verdict": "unexplained", "windows": [_window("unexplained", [])]}
+    for document in (whole, windows):
+        with pytest.raises(ValueError, match=r"ended 'unexplained'.*--effects auto"):
+            effects_of_diagnosis(document)
+    with pytest.raises(ValueError) as raised:
+        effects_of_diagnosis(whole)
+    assert f"(its residual: {said})" in str(raised.value)
+    # Effects found and some residual left: the found effects are physics to compensate with.
+    partial = {"verdict": "delay", "final": {"effects": ["delay"]}, "unexplained": said}
+    assert effects_of_diagnosis(partial) == ("delay",)
+    votes = [_window("unexplained", []), _window("delay", ["delay"])]
+    assert effects_of_diagnosis({"verdict": "delay", "windows": votes}) == ("delay",)
 
 
 @pytest.mark.parametrize(
@@ -144,6 +161,7 @@ def test_any_file_gives_known_effect_names_or_a_data_error(tmp_path_factory, con
     except DataError as error:
         assert str(error).startswith(f"{path}: ")
     else:
+        assert json.loads(content).get("verdict") != "unexplained"
         assert isinstance(found, tuple)
         assert all(name in EFFECT_NAMES for name in found)
         assert len(set(found)) == len(found)
