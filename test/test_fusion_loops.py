@@ -50,7 +50,7 @@ def riccati_residual(space, predicted):
 
 @pytest.mark.parametrize("kind", ["multisine", "ramp"])
 def test_doubling_solves_the_riccati_equation_as_scipy_does_or_hands_it_over(kind):
-    doubled = 0
+    doubled = compared = 0
     for model in models(fitting_of(kind)):
         space = model.state_space()
         found = loops.riccati_by_doubling(
@@ -66,10 +66,15 @@ def test_doubling_solves_the_riccati_equation_as_scipy_does_or_hands_it_over(kin
             )
         except (np.linalg.LinAlgError, ValueError):
             continue  # scipy's QZ gives up where doubling solves it: the residual says so
-        if riccati_residual(space, expected) < 1e-12:  # scipy's own solution is exact here
+        # Two solutions agree only as far as the equation pins P down: a residual r allows an
+        # error up to about cond(P) r (a band-limited model with P's entries from 1e-12 to 6e4,
+        # cond 3e14, gave scipy a residual of 3e-13 and the doubling 6e-16, 6e-6 apart).
+        if riccati_residual(space, expected) * np.linalg.cond(expected) < 1e-7:
+            compared += 1
             scale = np.max(np.abs(expected))
             assert np.max(np.abs(found - expected)) <= 1e-6 * scale, (model, found, expected)
     assert doubled >= 50  # the doubling is the rule, scipy the exception
+    assert compared >= 20, compared  # 49 and 54 of 97
 
 
 def test_a_badly_scaled_riccati_equation_is_handed_to_scipy():
