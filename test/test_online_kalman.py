@@ -10,12 +10,14 @@ build that never lands gives way to the interim filter once the hold would outgr
 from __future__ import annotations
 
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from tcomp_core.online import OnlineCompensator, OnlineConfig
-from tcomp_core.online.kalman import FUSION_RETUNE_CHANGE
+from tcomp_core.online.config import FUSION_FIT_SAMPLES
+from tcomp_core.online.kalman import FUSION_RETUNE_CHANGE, FilterPolicy
 from tcomp_core.simulate import simulate_pair
 from tcomp_core.workers import Outcome
 
@@ -265,3 +267,74 @@ def test_a_refit_of_the_last_stretch_and_tau_reuses_its_fits(monkeypatch):
     kalman.build_filter(request(segment[1:]))
     kalman.build_filter(request(segment[1:], tau=(pair.tau1, 1.01 * pair.tau2)))
     assert len(calls) == 3
+
+
+def _kalman(samples: int, tau=(0.02, 0.1)):
+    """What FilterPolicy reads of a reconstructor: a full fit on ``samples`` pairs at ``tau``."""
+    model = SimpleNamespace(tau1=tau[0], tau2=tau[1])
+    return SimpleNamespace(model=model, interim=False, quick=False, samples=samples)
+
+
+def test_a_model_fitted_on_a_short_stretch_is_refitted_once_the_stretch_fills_the_window():
+    tau = (0.02, 0.1)
+    # A window of 1 000 pairs: a model fitted on the 700 after a gap is refitted at 1 000.
+    assert FilterPolicy.wanted(_kalman(700), tau, 900, 1000) == ""
+    assert FilterPolicy.wanted(_kalman(700), tau, 1000, 1000) == "refit"
+    assert FilterPolicy.wanted(_kalman(1000), tau, 1000, 1000) == ""
+    # A window longer than a fit takes: refitted as the stretch doubles, up to that most.
+    most = FUSION_FIT_SAMPLES
+    assert FilterPolicy.wanted(_kalman(1000), tau, 1999, 10 * most) == ""
+    assert FilterPolicy.wanted(_kalman(1000), tau, 2000, 10 * most) == "refit"
+    assert FilterPolicy.wanted(_kalman(3000), tau, most, 10 * most) == "refit"
+    assert FilterPolicy.wanted(_kalman(most), tau, 10 * most, 10 * most) == ""
+    # τ moved: a retune, then a refit, whatever the stretch.
+    moved = (tau[0] * (1.0 + 2 * FUSION_RETUNE_CHANGE), tau[1])
+    assert FilterPolicy.wanted(_kalman(1000), moved, 1000, 1000) == "retune"
+
+
+class LateRunner:
+    """A job runner whose job lands at the ``delay``-th poll after it was submitted."""
+
+    def __init__(self, delay: int) -> None:
+        self.delay, self.job, self.left = delay, None, 0
+
+    @property
+    def busy(self) -> bool:
+        return self.job is not None
+
+    def submit(self, function, *args) -> bool:
+        if self.job is not None:
+            return False
+        self.job, self.left = (function, args), self.delay
+        return True
+
+    def poll(self):
+        if self.job is None or self.left > 0:
+            self.left -= 1
+            return None
+        (function, args), self.job = self.job, None
+        return Outcome(function(*args))
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.slow
+def test_after_a_gap_the_filter_ends_on_the_model_of_a_whole_window():
+    """CI's node saw it: a gap, a refit landing late on the 700 pairs after it (band-limited,
+    where whole windows of this ramp give random-walk), kept for good since the stretch could
+    not double in a 1 000-pair window, widening the std at every corner of the ramp."""
+    pair = simulate_pair("ramp", noise_percent=0.5, duration=12.0, seed=8)
+    stamps = _stamps(pair)
+    kinds = []
+    for kept in (np.arange(stamps.size), np.r_[0:1500, 2000 : stamps.size]):
+        compensator = OnlineCompensator(
+            OnlineConfig(window_s=2.0), runner=LateRunner(8), estimate_runner=LateRunner(4)
+        )
+        for start in range(0, kept.size, 100):
+            part = kept[start : start + 100]
+            compensator.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+            compensator.poll_jobs()
+            compensator.update_estimate()
+        kinds.append(compensator.fusion_model.kind)
+    assert kinds[1] == kinds[0]

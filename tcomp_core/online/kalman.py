@@ -11,7 +11,8 @@ skipped, and the filter switches warm.
 
 :class:`FilterPolicy` decides when a build is needed: the first once τ is accepted and the
 window's gap-free stretch holds a window (up to :data:`~.config.FUSION_FIT_SAMPLES`), then a
-refit as the stretch it was fitted on doubles or τ moves by :data:`~.config.FUSION_REFIT_CHANGE`,
+refit as the stretch it was fitted on doubles (or fills the window: after a gap) or τ moves by
+:data:`~.config.FUSION_REFIT_CHANGE`,
 a retune of the same model when τ moves by :data:`FUSION_RETUNE_CHANGE`. A stream in a worker
 first compares the quick models (a fraction of a second), then all.
 
@@ -390,10 +391,14 @@ class FilterPolicy:
         moved = max(
             abs(new / old - 1.0) for new, old in zip(tau, (model.tau1, model.tau2), strict=True)
         )
-        # Refit as the stretch doubles, up to FUSION_FIT_SAMPLES (a window shorter than that
-        # is fitted whole from the start).
+        # Refit as the stretch doubles, up to the most a fit takes: FUSION_FIT_SAMPLES or the
+        # whole window. A model fitted on the short stretch after a gap is refitted once the
+        # stretch reaches that most, though it cannot double: else it stayed for good (a
+        # band-limited model fitted on 700 pairs of a 1 000-pair window, where the whole
+        # window gives random-walk, widened the std at every corner of a ramp).
         fitted = reconstructor.samples
-        grown = fitted < FUSION_FIT_SAMPLES and min(stretch, FUSION_FIT_SAMPLES) >= 2 * fitted
+        most = FilterPolicy.first_fit_samples(capacity)
+        grown = fitted < most and min(stretch, most) >= min(2 * fitted, most)
         if moved >= FUSION_REFIT_CHANGE or grown:
             return "refit"
         return "retune" if moved >= FUSION_RETUNE_CHANGE else ""
