@@ -292,31 +292,25 @@ def test_a_model_fitted_on_a_short_stretch_is_refitted_once_the_stretch_fills_th
     assert FilterPolicy.wanted(_kalman(1000), moved, 1000, 1000) == "retune"
 
 
-class LateRunner:
+class LateRunner(DeferredRunner):
     """A job runner whose job lands at the ``delay``-th poll after it was submitted."""
 
     def __init__(self, delay: int) -> None:
-        self.delay, self.job, self.left = delay, None, 0
-
-    @property
-    def busy(self) -> bool:
-        return self.job is not None
+        super().__init__()
+        self.delay, self.left = delay, 0
 
     def submit(self, function, *args) -> bool:
-        if self.job is not None:
-            return False
-        self.job, self.left = (function, args), self.delay
-        return True
+        started = super().submit(function, *args)
+        if started:
+            self.left = self.delay
+        return started
 
     def poll(self):
-        if self.job is None or self.left > 0:
+        if self.job is not None:
+            if self.left == 0:
+                self.finish()
             self.left -= 1
-            return None
-        (function, args), self.job = self.job, None
-        return Outcome(function(*args))
-
-    def close(self) -> None:
-        pass
+        return super().poll()
 
 
 @pytest.mark.slow
