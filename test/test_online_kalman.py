@@ -332,3 +332,32 @@ def test_after_a_gap_the_filter_ends_on_the_model_of_a_whole_window():
             compensator.update_estimate()
         kinds.append(compensator.fusion_model.kind)
     assert kinds[1] == kinds[0]
+
+
+@pytest.mark.slow
+def test_a_build_that_lands_late_is_not_asked_for_again_while_it_runs(monkeypatch):
+    """A quick fit's full refit takes seconds in the node's worker; the estimates accepted
+    meanwhile asked for it again against the quick model, and the same stretch was fitted twice.
+    """
+    import tcomp_core.online.compensator as compensator_module
+
+    built = []
+    build = compensator_module.build_filter
+    monkeypatch.setattr(
+        compensator_module, "build_filter", lambda request: built.append(request) or build(request)
+    )
+    pair = simulate_pair("ramp", noise_percent=0.5, duration=12.0, seed=8)
+    stamps = _stamps(pair)
+    counts = []
+    for delay in (0, 8, 30):  # polls (100 pairs each) a build takes to land
+        built.clear()
+        compensator = OnlineCompensator(
+            OnlineConfig(window_s=2.0), runner=LateRunner(delay), estimate_runner=LateRunner(4)
+        )
+        for start in range(0, stamps.size, 100):
+            part = slice(start, start + 100)
+            compensator.add_pairs(stamps[part], pair.tc1[part], pair.tc2[part])
+            compensator.poll_jobs()
+            compensator.update_estimate()
+        counts.append(len(built))
+    assert counts[1:] == [counts[0]] * 2, counts  # as many builds as landing at once

@@ -419,6 +419,11 @@ class OnlineCompensator:
         reconstructor = self._reconstructor
         if not isinstance(reconstructor, KalmanReconstructor) or self._tau is None:
             return
+        if self._running == "filter" and self._building_for is reconstructor:
+            # The build that runs was asked for against the filter in use, as this would be: a
+            # quick fit's full refit asked again while it runs would fit the same stretch once
+            # more. The next accepted estimate asks against the filter that lands.
+            return
         assert self._estimator is not None
         wanted = FilterPolicy.wanted(
             reconstructor,
