@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from tcomp_core.online import OnlineCompensator, OnlineConfig
-from tcomp_core.online.config import FUSION_FIT_SAMPLES
+from tcomp_core.online.config import FUSION_FIT_SAMPLES, FUSION_REFIT_CHANGE
 from tcomp_core.online.kalman import FUSION_RETUNE_CHANGE, FilterPolicy
 from tcomp_core.simulate import simulate_pair
 from tcomp_core.workers import Outcome
@@ -290,6 +290,8 @@ def test_a_model_fitted_on_a_short_stretch_is_refitted_once_the_stretch_fills_th
     # τ moved: a retune, then a refit, whatever the stretch.
     moved = (tau[0] * (1.0 + 2 * FUSION_RETUNE_CHANGE), tau[1])
     assert FilterPolicy.wanted(_kalman(1000), moved, 1000, 1000) == "retune"
+    moved = (tau[0], tau[1] * (1.0 + 1.5 * FUSION_REFIT_CHANGE))
+    assert FilterPolicy.wanted(_kalman(1000), moved, 10, 1000) == "refit"
 
 
 class LateRunner(DeferredRunner):
