@@ -1,9 +1,9 @@
-"""Does the gas's std hold its error when τ is estimated, not given? (a finding, not yet a fix)
+"""Does the gas's std hold its error when τ is estimated, not given?
 
 The Kalman std (smoother and causal filter) is built from the noise, plus the first-order
 misfit (``bench_std_coverage.py``), at the τ it is handed. An error δτ_i in τ moves the gas by
 about (ĝ − T_i) δτ_i/τ_i through sensor i's inversion (a first-order sensor reads
-g = T_i + τ_i dT_i/dt, so ∂g/∂log τ_i = g − T_i), which no std includes. Where the noise
+g = T_i + τ_i dT_i/dt, so ∂g/∂log τ_i = g − T_i), which that std leaves out. Where the noise
 leaves the std small (a periodic model of a sinusoid: the gas is predictable from its past) that
 term dominates.
 
@@ -14,8 +14,8 @@ less 5 % at each end: rms error, median std, share of samples within 2 and 4 std
 the path's slope ∂ĝ/∂log τ_i (the same path at τ_i (1 + 1e-3), the same signal model) times
 σ_i, the relative σ of τ_i from ml-eiv's 95 % intervals, combined as if τ1's and τ2's errors
 were independent (``τ apart``) or one error of both (``τ common``: their ratio pinned, as the
-cross-relation pins it best); each with the share within 4 std were it added in quadrature:
-what such a term would give, for the issue that adds it.
+cross-relation pins it best); each with the share within 4 std were it added in quadrature.
+``tcomp reconstruct`` adds the first (:mod:`tcomp_core.fusion.tau_spread`).
 
 Run::
 

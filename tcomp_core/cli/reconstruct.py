@@ -123,9 +123,11 @@ def run(args: argparse.Namespace) -> int:
             raise TcompError("--effects fits tau1 and tau2 with the effects: drop --tau1/--tau2")
         return _run_compensated(record, args, effects)
     readings = record.tc1, record.tc2
+    tau_log_se = None  # τ given: its uncertainty is the user's to know
     if args.tau1 is None:
         result = estimate_with(record, args, args.method)
         tau1, tau2 = result.tau1, result.tau2
+        tau_log_se = result.tau_log_se()
         print(f"{args.method}: tau1 = {tau1:.6f} s, tau2 = {tau2:.6f} s")
         if result.lines:
             # The gas never carried the line: take it off the sensor that did, not the gas.
@@ -133,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         tau1, tau2 = args.tau1, args.tau2
     if args.reconstruction != "difference":
-        return _run_kalman(record, args, tau1, tau2, readings)
+        return _run_kalman(record, args, (tau1, tau2), readings, tau_log_se)
     return _run_difference(record, args, tau1, tau2, readings)
 
 
@@ -214,30 +216,39 @@ def _run_difference(
 def _run_kalman(
     record: Record,
     args: argparse.Namespace,
-    tau1: float,
-    tau2: float,
+    taus: tuple[float, float],
     readings: tuple[NDArray[np.float64], NDArray[np.float64]],
+    tau_log_se: tuple[float, float] | None,
 ) -> int:
     """``reconstruct --reconstruction kalman[-causal]``; Eq. (7) when no model can be used.
 
-    ``readings`` as for :func:`_run_difference`.
+    ``readings`` as for :func:`_run_difference`; ``tau_log_se`` the standard errors of log τ
+    of the estimate (None when τ was given, or its method gives none): what τ's uncertainty
+    adds to the gas is then added to its std (:mod:`tcomp_core.fusion.tau_spread`).
     """
     import numpy as np
 
     from ..errors import EstimationError
     from ..fusion import fuse
+    from ..fusion.tau_spread import with_tau_spread
     from ..metrics import reconstruction_error_percent
 
     _check_difference_options(args)
     causal = args.reconstruction == "kalman-causal"
     try:
-        fused = fuse(*readings, record.dt, tau1, tau2, model=args.signal_model, causal=causal)
+        fused = fuse(*readings, record.dt, *taus, model=args.signal_model, causal=causal)
     except EstimationError as exc:
         print(f"tcomp reconstruct: warning: {exc}; the gas is Eq. (7)'s", file=sys.stderr)
-        return _run_difference(record, args, tau1, tau2, readings)
+        return _run_difference(record, args, *taus, readings)
     if fused.note:
         print(f"tcomp reconstruct: note: {fused.note}", file=sys.stderr)
     _warn_misfit(record, fused.misfit_warning, "tcomp diagnose names the missing physics")
+    if tau_log_se is not None:
+        fused = with_tau_spread(fused, *readings, tau_log_se)
+        print(
+            f"the std holds tau's uncertainty (sigma {100 * tau_log_se[0]:.3g} % and "
+            f"{100 * tau_log_se[1]:.3g} % of tau1, tau2)"
+        )
     model = fused.model
     settings = f"q = {model.q:.4g}"
     if model.kind in ("band-limited", "periodic"):

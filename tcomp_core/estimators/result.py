@@ -101,6 +101,19 @@ class Estimate:
                 )
         return ""
 
+    def tau_log_se(self) -> tuple[float, float] | None:
+        """Standard errors of log τ1 and log τ2 (σ_τi / τ_i); None for estimators without them.
+
+        From ``params["tau1_se"]``, ``["tau2_se"]`` (ml-eiv's delta-method standard errors, s).
+        """
+        found = [
+            self.params.get(f"tau{i}_se", math.nan) / tau
+            for i, tau in ((1, self.tau1), (2, self.tau2))
+        ]
+        if not all(math.isfinite(value) and value >= 0.0 for value in found):
+            return None
+        return found[0], found[1]
+
     def to_dict(self) -> dict[str, Any]:
         """Plain-JSON dictionary of the estimate, with α added."""
         data = asdict(self)

@@ -14,7 +14,7 @@ from .fitting import FIT_FAILURES, SignalModelFits, fit_signal_models
 from .signal_model import FusionModel, ModelChoice
 from .smoother import smoothed_gas
 
-__all__ = ["FusionResult", "fuse"]
+__all__ = ["FusionResult", "fuse", "run_model"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -115,7 +115,7 @@ def fuse(
     """
     first, second = check_pair(tc1, tc2)
     if isinstance(model, FusionModel):
-        gas, std, log_likelihood = _run(model, first, second, causal)
+        gas, std, log_likelihood = run_model(model, first, second, causal)
         if gas is None:
             raise EstimationError(
                 f"the Kalman reconstruction with the {model.kind} signal model is numerically "
@@ -134,7 +134,7 @@ def fuse(
     )
     failures, unstable = dict(fits.failures), []
     for fitted, _ in fits.ranked:
-        gas, std, log_likelihood = _run(fitted, first, second, causal)
+        gas, std, log_likelihood = run_model(fitted, first, second, causal)
         if gas is None:
             failures[fitted.kind] = "numerically unstable on this record (non-finite output)"
             unstable.append(fitted.kind)
@@ -163,7 +163,7 @@ def fuse(
     raise EstimationError(f"no signal model of the gas could be used: {reasons}")
 
 
-def _run(
+def run_model(
     model: FusionModel, first: NDArray[np.float64], second: NDArray[np.float64], causal: bool
 ) -> tuple[NDArray[np.float64] | None, NDArray[np.float64], float]:
     """Gas, std and log-likelihood of the smoother or causal filter (gas None: not finite)."""
