@@ -12,10 +12,10 @@ default path's gas (ml-eiv's τ on the record, the smoother; ``--causal`` for th
 causal filter) and the same with the simulator's τ are scored against the truth over the record
 less 5 % at each end: rms error, median std, share of samples within 2 and 4 std. The τ term:
 the path's slope ∂ĝ/∂log τ_i (the same path at τ_i (1 + 1e-3), the same signal model) times
-σ_i, the relative σ of τ_i from ml-eiv's 95 % intervals, combined as if τ1's and τ2's errors
-were independent (``τ apart``) or one error of both (``τ common``: their ratio pinned, as the
-cross-relation pins it best); each with the share within 4 std were it added in quadrature.
-``tcomp reconstruct`` adds the first (:mod:`tcomp_core.fusion.tau_spread`).
+σ_i, ml-eiv's relative standard error of τ_i (``Estimate.tau_log_se``), combined as if τ1's and
+τ2's errors were independent (``τ apart``) or one error of both (``τ common``: their ratio
+pinned, as the cross-relation pins it best); each with the share within 4 std were it added in
+quadrature. ``tcomp reconstruct`` adds the first (:mod:`tcomp_core.fusion.tau_spread`).
 
 Run::
 
@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,16 +33,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tcomp_core.estimators import estimate
-from tcomp_core.estimators.mleiv import CONFIDENCE
 from tcomp_core.fusion import fuse
+from tcomp_core.fusion.tau_spread import tau_slope
 from tcomp_core.simulate import SIGNALS, simulate_pair
 
 #: Share of the record left out at each end (the smoother's start and end).
 EDGE = 0.05
-#: Relative step of τ for the gas's slope.
-STEP = 1e-3
-#: Two-sided normal quantile of ml-eiv's intervals.
-Z = {0.95: 1.959963984540054}[CONFIDENCE]
 
 
 def _within(error: np.ndarray, std: np.ndarray, k: float) -> float:
@@ -67,19 +62,9 @@ def score(kind: str, seed: int, causal: bool) -> dict[str, float]:
             f"{label}_in4": _within(error, std, 4.0),
         }
         if label == "est":
-            relative = [
-                (found.params[f"{name}_ci_high"] - found.params[f"{name}_ci_low"])
-                / (2.0 * Z * tau)
-                for name, tau in (("tau1", found.tau1), ("tau2", found.tau2))
-            ]
-            # ∂ĝ/∂log τ_i by a difference of the same path at τ_i (1 + STEP).
-            slopes = []
-            for i in range(2):
-                moved = list(taus)
-                moved[i] *= 1.0 + STEP
-                model = replace(fused.model, tau1=moved[0], tau2=moved[1])  # same signal model
-                again = fuse(pair.tc1, pair.tc2, pair.dt, *moved, causal=causal, model=model)
-                slopes.append((again.gas - fused.gas)[keep] / STEP)
+            relative = found.tau_log_se()
+            # ∂ĝ/∂log τ_i: the same path at τ_i (1 + STEP), as reconstruct's std takes it.
+            slopes = [tau_slope(fused, pair.tc1, pair.tc2, i)[keep] for i in range(2)]
             parts = [slope * share for slope, share in zip(slopes, relative, strict=True)]
             apart = np.hypot(*parts)  # τ1's and τ2's errors independent
             common = np.abs(parts[0] + parts[1])  # one error of both (their ratio pinned)

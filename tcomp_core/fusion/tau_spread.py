@@ -24,11 +24,39 @@ from numpy.typing import ArrayLike, NDArray
 from ..validation import check_pair
 from .record import FusionResult, run_model
 
-__all__ = ["STEP", "tau_spread_std", "with_tau_spread"]
+__all__ = ["STEP", "tau_slope", "tau_spread_std", "with_tau_spread"]
 
 #: Relative step of τ_i for the gas's slope: the slope at 1e-3 is within 0.2 % of the slope at
 #: 1e-4 (sinusoid and exhaust records, both τ), a std's worth of precision.
 STEP = 1e-3
+
+
+def tau_slope(
+    result: FusionResult, tc1: ArrayLike, tc2: ArrayLike, which: int
+) -> NDArray[np.float64] | None:
+    """∂ĝ/∂log τ_i of ``result``'s gas, degrees C, shape (N,): its path again at τ_i (1 + STEP).
+
+    Parameters
+    ----------
+    result : FusionResult
+        What :func:`~.record.fuse` gave on ``tc1``, ``tc2``.
+    tc1, tc2 : array_like, shape (N,)
+        The readings it was given, degrees C.
+    which : {0, 1}
+        0 for τ1, 1 for τ2.
+
+    Returns
+    -------
+    ndarray or None
+        The slope, the smoother or causal filter and signal model of ``result`` kept; None when
+        the moved run is not finite.
+    """
+    first, second = check_pair(tc1, tc2)
+    moved = [result.model.tau1, result.model.tau2]
+    moved[which] *= 1.0 + STEP
+    model = replace(result.model, tau1=moved[0], tau2=moved[1])
+    gas = run_model(model, first, second, result.causal)[0]
+    return None if gas is None else (gas - result.gas) / STEP
 
 
 def tau_spread_std(
@@ -38,10 +66,8 @@ def tau_spread_std(
 
     Parameters
     ----------
-    result : FusionResult
-        What :func:`~.record.fuse` gave on ``tc1``, ``tc2``.
-    tc1, tc2 : array_like, shape (N,)
-        The readings it was given, degrees C.
+    result, tc1, tc2
+        As for :func:`tau_slope`.
     tau_log_se : (float, float)
         Standard errors of log τ1 and log τ2 (σ_τi / τ_i), as ml-eiv gives them
         (:meth:`~tcomp_core.estimators.result.Estimate.tau_log_se`).
@@ -49,21 +75,16 @@ def tau_spread_std(
     Returns
     -------
     ndarray
-        sqrt(Σ_i (∂ĝ/∂log τ_i σ_i)²); a τ_i whose moved run is not finite adds nothing.
+        sqrt(Σ_i (∂ĝ/∂log τ_i σ_i)²) (:func:`tau_slope`); a τ_i whose moved run is not finite
+        adds nothing.
     """
-    first, second = check_pair(tc1, tc2)
     variance = np.zeros_like(result.gas)
-    taus = (result.model.tau1, result.model.tau2)
-    for i, share in enumerate(tau_log_se):
+    for which, share in enumerate(tau_log_se):
         if not (math.isfinite(share) and share > 0.0):
             continue
-        moved = list(taus)
-        moved[i] *= 1.0 + STEP
-        model = replace(result.model, tau1=moved[0], tau2=moved[1])
-        gas = run_model(model, first, second, result.causal)[0]
-        if gas is None:
-            continue
-        variance += ((gas - result.gas) / STEP * share) ** 2
+        slope = tau_slope(result, tc1, tc2, which)
+        if slope is not None:
+            variance += (slope * share) ** 2
     return np.sqrt(variance)
 
 

@@ -12,12 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import parameters
-from ..choices import (
-    RECONSTRUCT_FROM,
-    RECONSTRUCTIONS,
-    SIGNAL_MODELS,
-    ReconstructFrom,
-)
+from ..choices import RECONSTRUCT_FROM, RECONSTRUCTIONS, SIGNAL_MODELS, ReconstructFrom
 from ..diagnose.saved import saved_diagnosis_effects
 from ..estimators import Estimate
 from ..validation import MIN_SAMPLES
